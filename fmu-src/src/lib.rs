@@ -1,0 +1,13 @@
+//! EhsvActuator: an electro-hydraulic servo actuator as an FMI 2.0 / 3.0
+//! Co-Simulation FMU.
+//!
+//! * [`variables`] and [`units`]: the one table of variables (drives XML, get/set, validation).
+//! * [`physics`]: plain-Rust model of driver, coil and Moog 30 valve, with its exact
+//!   piecewise-linear integrator. No FFI, no `unsafe`.
+//! * [`model`]: a model instance as the FMI layer sees it (values by reference, step, state bytes).
+//! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code).
+
+pub mod model;
+pub mod physics;
+pub mod units;
+pub mod variables;

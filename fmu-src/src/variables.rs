@@ -1,0 +1,407 @@
+//! The one table of model variables.
+//!
+//! Everything that names a variable reads it from here: both modelDescription.xml
+//! files, get/set by value reference in the C API, parameter validation and the
+//! README's variable list. The value reference of a variable is its index in
+//! [`VARIABLES`]; new variables are appended so existing references never move.
+
+/// FMI causality (the subset this FMU uses).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Causality {
+    Independent,
+    Parameter,
+    Input,
+    Output,
+}
+
+/// FMI variability (the subset this FMU uses).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variability {
+    Fixed,
+    Tunable,
+    Discrete,
+    Continuous,
+}
+
+/// Value type; enumerations name one of [`ENUMERATIONS`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VarType {
+    Real,
+    Boolean,
+    Enumeration(&'static str),
+}
+
+/// `initial` attribute: start values are exact for inputs and parameters,
+/// calculated for outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Initial {
+    Exact,
+    Calculated,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Variable {
+    pub name: &'static str,
+    pub causality: Causality,
+    pub variability: Variability,
+    pub ty: VarType,
+    /// Name of a unit in [`crate::units::UNITS`]; `None` for Booleans, enums and dimensionless ratios.
+    pub unit: Option<&'static str>,
+    pub display_unit: Option<&'static str>,
+    pub start: f64,
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    /// `min` itself is not allowed (a strictly positive quantity).
+    pub min_exclusive: bool,
+    pub description: &'static str,
+}
+
+impl Variable {
+    pub const fn value_reference(&self, index: usize) -> u32 {
+        index as u32
+    }
+    pub fn initial(&self) -> Option<Initial> {
+        match self.causality {
+            Causality::Independent | Causality::Input => None,
+            Causality::Parameter => Some(Initial::Exact),
+            Causality::Output => Some(Initial::Calculated),
+        }
+    }
+    /// Outputs and the independent variable have no start value in the XML.
+    pub fn has_start(&self) -> bool {
+        matches!(self.causality, Causality::Parameter | Causality::Input)
+    }
+    /// Checks a value against type and range; the message names the variable and the allowed range.
+    pub fn check(&self, value: f64) -> Result<(), String> {
+        if !value.is_finite() {
+            return Err(format!("{} = {value} rejected: the value must be finite", self.name));
+        }
+        match self.ty {
+            VarType::Boolean if value != 0.0 && value != 1.0 => {
+                return Err(format!("{} = {value} rejected: a Boolean is 0 or 1", self.name));
+            }
+            VarType::Enumeration(_) if value.fract() != 0.0 => {
+                return Err(format!("{} = {value} rejected: an enumeration value is an integer", self.name));
+            }
+            _ => {}
+        }
+        let below = match self.min {
+            Some(min) if self.min_exclusive => value <= min,
+            Some(min) => value < min,
+            None => false,
+        };
+        let above = matches!(self.max, Some(max) if value > max);
+        if below || above {
+            return Err(format!("{} = {value} rejected: allowed range is {}", self.name, self.range_text()));
+        }
+        Ok(())
+    }
+    pub fn range_text(&self) -> String {
+        let lo = match self.min {
+            Some(m) if self.min_exclusive => format!("({m}"),
+            Some(m) => format!("[{m}"),
+            None => "(-inf".to_string(),
+        };
+        let hi = match self.max {
+            Some(m) => format!("{m}]"),
+            None => "+inf)".to_string(),
+        };
+        format!("{lo}, {hi}")
+    }
+}
+
+/// An FMI enumeration type: (integer value, item name, description).
+pub struct Enumeration {
+    pub name: &'static str,
+    pub description: &'static str,
+    pub items: &'static [(i64, &'static str, &'static str)],
+}
+
+pub const ENUMERATIONS: &[Enumeration] = &[
+    Enumeration {
+        name: "DriverType",
+        description: "Coil driver topology",
+        items: &[
+            (0, "ideal_current", "coil current equals the command exactly (paper eq. 3)"),
+            (1, "voltage", "open-loop voltage R_total*i_cmd clamped at the rails (paper eq. 4)"),
+            (2, "opamp_pi", "high-voltage op-amp PI current driver (the paper's proposal)"),
+            (3, "industrial", "off-the-shelf linear current amplifier (My-502 like)"),
+            (4, "hbridge_pid", "H-bridge with PWM and a digital PI current loop"),
+        ],
+    },
+    Enumeration {
+        name: "ControlMode",
+        description: "Which command drives the coil current",
+        items: &[
+            (0, "current", "i_ref is the current command"),
+            (1, "flow", "flow PID on Q_valve follows Q_ref"),
+            (2, "position", "position PID on the piston follows x_ref"),
+        ],
+    },
+];
+
+use Causality::*;
+use Variability::*;
+
+const fn real(
+    name: &'static str,
+    causality: Causality,
+    variability: Variability,
+    unit: Option<&'static str>,
+    display_unit: Option<&'static str>,
+    start: f64,
+    description: &'static str,
+) -> Variable {
+    Variable {
+        name,
+        causality,
+        variability,
+        ty: VarType::Real,
+        unit,
+        display_unit,
+        start,
+        min: None,
+        max: None,
+        min_exclusive: false,
+        description,
+    }
+}
+
+const fn input(name: &'static str, unit: &'static str, display: Option<&'static str>, start: f64, description: &'static str) -> Variable {
+    real(name, Input, Continuous, Some(unit), display, start, description)
+}
+
+const fn output(name: &'static str, unit: &'static str, display: Option<&'static str>, description: &'static str) -> Variable {
+    real(name, Output, Continuous, Some(unit), display, 0.0, description)
+}
+
+/// A fixed parameter (changeable before initialisation only).
+const fn param(name: &'static str, unit: Option<&'static str>, start: f64, description: &'static str) -> Variable {
+    real(name, Parameter, Fixed, unit, None, start, description)
+}
+
+impl Variable {
+    const fn range(mut self, min: Option<f64>, max: Option<f64>) -> Self {
+        self.min = min;
+        self.max = max;
+        self
+    }
+    /// Strictly positive.
+    const fn positive(mut self) -> Self {
+        self.min = Some(0.0);
+        self.min_exclusive = true;
+        self
+    }
+    const fn non_negative(mut self) -> Self {
+        self.min = Some(0.0);
+        self
+    }
+}
+
+/// Index (= value reference) of every variable, so code names variables, never numbers.
+pub mod vr {
+    pub const TIME: usize = 0;
+    pub const I_REF: usize = 1;
+    pub const V_SUPPLY: usize = 2;
+    pub const I_COIL: usize = 3;
+    pub const U_DRIVER: usize = 4;
+    pub const DRIVER_SATURATED: usize = 5;
+    pub const X_FLAPPER: usize = 6;
+    pub const X_SPOOL: usize = 7;
+    pub const Q_VALVE: usize = 8;
+    pub const DRIVER: usize = 9;
+    pub const CONTROL_MODE: usize = 10;
+    pub const DRIVER_KP: usize = 11;
+    pub const DRIVER_KI: usize = 12;
+    pub const DRIVER_V_DROP: usize = 13;
+    pub const DRIVER_SLEW_RATE: usize = 14;
+    pub const COIL_L: usize = 15;
+    pub const COIL_R: usize = 16;
+    pub const COIL_R_SENSE: usize = 17;
+    pub const COIL_K_B: usize = 18;
+    pub const VALVE_K1: usize = 19;
+    pub const VALVE_KF: usize = 20;
+    pub const VALVE_KW: usize = 21;
+    pub const VALVE_K2: usize = 22;
+    pub const VALVE_K3: usize = 23;
+    pub const VALVE_A_S: usize = 24;
+    pub const VALVE_ZETA: usize = 25;
+    pub const VALVE_F_N: usize = 26;
+}
+
+pub const N_VARIABLES: usize = 27;
+
+pub static VARIABLES: [Variable; N_VARIABLES] = [
+    Variable {
+        name: "time",
+        causality: Independent,
+        variability: Continuous,
+        ty: VarType::Real,
+        unit: Some("s"),
+        display_unit: None,
+        start: 0.0,
+        min: None,
+        max: None,
+        min_exclusive: false,
+        description: "Simulation time",
+    },
+    // Inputs
+    input("i_ref", "A", Some("mA"), 0.0, "Coil current command (used when control_mode = current)"),
+    input("V_supply", "V", None, 72.0, "Driver supply: the output rails are at +V_supply and -V_supply")
+        .range(Some(0.0), Some(1000.0)),
+    // Outputs
+    output("i_coil", "A", Some("mA"), "Torque-motor coil current"),
+    output("u_driver", "V", None, "Driver output voltage across coil and sense resistor"),
+    Variable {
+        name: "driver_saturated",
+        causality: Output,
+        variability: Discrete,
+        ty: VarType::Boolean,
+        unit: None,
+        display_unit: None,
+        start: 0.0,
+        min: None,
+        max: None,
+        min_exclusive: false,
+        description: "The driver output is at a supply rail",
+    },
+    output("x_flapper", "m", Some("um"), "Armature/flapper displacement at the nozzles"),
+    output("x_spool", "m", Some("mm"), "Main spool displacement"),
+    output("Q_valve", "m3/s", Some("L/min"), "No-load valve flow K3*x_spool (the paper's hydraulic-amplifier load flow)"),
+    // Structural parameters
+    Variable {
+        name: "driver",
+        causality: Parameter,
+        variability: Fixed,
+        ty: VarType::Enumeration("DriverType"),
+        unit: None,
+        display_unit: None,
+        start: 2.0,
+        min: Some(0.0),
+        max: Some(2.0),
+        min_exclusive: false,
+        description: "Coil driver: 0 ideal_current, 1 voltage, 2 opamp_pi (3 industrial and 4 hbridge_pid are not built yet)",
+    },
+    Variable {
+        name: "control_mode",
+        causality: Parameter,
+        variability: Fixed,
+        ty: VarType::Enumeration("ControlMode"),
+        unit: None,
+        display_unit: None,
+        start: 0.0,
+        min: Some(0.0),
+        max: Some(0.0),
+        min_exclusive: false,
+        description: "Outer loop: 0 current (the flow and position loops are not built yet)",
+    },
+    // Driver
+    param("driver.Kp", Some("V/A"), 1.6e5, "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
+        .non_negative(),
+    param("driver.Ki", Some("V/(A.s)"), 5.0e7, "Op-amp PI integral gain (= G*R_s/(R_f*C_f)); default Ki/Kp = R/L cancels the coil pole")
+        .non_negative(),
+    param("driver.V_drop", Some("V"), 0.0, "Output stage drop: the output saturates at +-(V_supply - V_drop)")
+        .non_negative(),
+    param("driver.slew_rate", Some("V/s"), 2.0e7, "Op-amp output slew-rate limit (20 V/us)").positive(),
+    // Coil
+    param("coil.L", Some("H"), 3.2, "Torque-motor coil (apparent) inductance").positive(),
+    param("coil.R", Some("Ohm"), 1000.0, "Torque-motor coil resistance").positive(),
+    param("coil.R_sense", Some("Ohm"), 0.0, "Current-sense resistor in series with the coil").non_negative(),
+    param("coil.K_b", Some("V.s/m"), 0.0, "Back-EMF constant on the flapper velocity (0: already in the apparent inductance)")
+        .non_negative(),
+    // Valve (Moog 30 linear model)
+    param("valve.K1", Some("N.m/A"), 2.82462, "Torque-motor gain (0.025 in-lb/mA)").positive(),
+    param("valve.Kf", Some("N.m/m"), 511.545, "Net stiffness on flapper/armature (115 in-lb/in)").positive(),
+    param("valve.Kw", Some("N.m/m"), 74.2853, "Feedback wire stiffness (16.7 in-lb/in)").positive(),
+    param("valve.K2", Some("m2/s"), 0.0967740, "Hydraulic amplifier flow gain (150 in3/s/in)").positive(),
+    param("valve.K3", Some("m2/s"), 0.664515, "Spool/bushing flow gain (1030 in3/s/in)").positive(),
+    param("valve.A_s", Some("m2"), 1.67742e-5, "Spool end area (0.026 in2)").positive(),
+    param("valve.zeta", None, 0.4, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
+    param("valve.f_n", Some("Hz"), 814.0, "Natural frequency of the first stage").positive(),
+];
+
+/// Index of the variable with this name.
+pub fn index_of(name: &str) -> Option<usize> {
+    VARIABLES.iter().position(|v| v.name == name)
+}
+
+/// Start values of all variables, indexed by value reference.
+pub fn start_values() -> [f64; N_VARIABLES] {
+    let mut values = [0.0; N_VARIABLES];
+    for (slot, var) in values.iter_mut().zip(VARIABLES.iter()) {
+        *slot = var.start;
+    }
+    values
+}
+
+/// FNV-1a over every attribute that an importer binds to, formatted as a GUID:
+/// the FMI 2 guid and FMI 3 instantiationToken change whenever the interface does.
+pub fn interface_token() -> String {
+    let mut hash: u128 = 0x6c62272e07bb014262b821756295c58d;
+    let mut feed = |bytes: &[u8]| {
+        for &b in bytes {
+            hash ^= b as u128;
+            hash = hash.wrapping_mul(0x0000000001000000000000000000013B);
+        }
+        hash ^= 0xff;
+    };
+    for (i, v) in VARIABLES.iter().enumerate() {
+        feed(&(i as u64).to_le_bytes());
+        feed(v.name.as_bytes());
+        feed(format!("{:?}{:?}{:?}", v.causality, v.variability, v.ty).as_bytes());
+        feed(v.unit.unwrap_or("").as_bytes());
+        feed(&v.start.to_le_bytes());
+        feed(&v.min.unwrap_or(f64::NAN).to_le_bytes());
+        feed(&v.max.unwrap_or(f64::NAN).to_le_bytes());
+    }
+    for e in ENUMERATIONS {
+        feed(e.name.as_bytes());
+        for (value, name, _) in e.items {
+            feed(&value.to_le_bytes());
+            feed(name.as_bytes());
+        }
+    }
+    let h = format!("{hash:032x}");
+    format!("{{{}-{}-{}-{}-{}}}", &h[0..8], &h[8..12], &h[12..16], &h[16..20], &h[20..32])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_unique_and_constants_match_table() {
+        for (i, a) in VARIABLES.iter().enumerate() {
+            for b in &VARIABLES[i + 1..] {
+                assert_ne!(a.name, b.name);
+            }
+        }
+        assert_eq!(index_of("i_ref"), Some(vr::I_REF));
+        assert_eq!(index_of("Q_valve"), Some(vr::Q_VALVE));
+        assert_eq!(index_of("valve.f_n"), Some(vr::VALVE_F_N));
+        assert_eq!(index_of("coil.K_b"), Some(vr::COIL_K_B));
+        assert_eq!(index_of("driver"), Some(vr::DRIVER));
+    }
+
+    #[test]
+    fn start_values_pass_their_own_checks() {
+        for v in VARIABLES.iter().filter(|v| v.has_start()) {
+            v.check(v.start).unwrap();
+        }
+    }
+
+    #[test]
+    fn check_names_variable_and_range() {
+        let l = &VARIABLES[vr::COIL_L];
+        let msg = l.check(-1.0).unwrap_err();
+        assert!(msg.contains("coil.L") && msg.contains("(0, +inf)"), "{msg}");
+        assert!(l.check(f64::NAN).unwrap_err().contains("finite"));
+    }
+
+    #[test]
+    fn token_is_a_guid() {
+        let t = interface_token();
+        assert_eq!(t.len(), 38);
+        assert!(t.starts_with('{') && t.ends_with('}'));
+    }
+}
