@@ -1,0 +1,50 @@
+"""pytest configuration for the EhsvActuator FMU suite.
+
+The archives are built before pytest runs (scripts/test.sh: `cargo run --release -p
+build-fmu`); nothing here builds anything. Every FMU test runs for both archives
+(fmi2 and fmi3). Expensive simulations are cached for the session so that several
+tests can look at one run.
+"""
+import functools
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "cosim-examples"))
+
+import ehsv_scenarios as ehsv  # noqa: E402  (shared helpers: one place for each fact)
+
+
+@pytest.fixture(scope="module", params=ehsv.VERSIONS)
+def version(request):
+    """'fmi2' or 'fmi3'; fails (not skips) when the archive has not been built."""
+    msg = ehsv.missing_fmu_message(request.param)
+    if msg:
+        pytest.fail(msg, pytrace=False)
+    return request.param
+
+
+@pytest.fixture(scope="module")
+def fmu(version):
+    return ehsv.fmu_path(version)
+
+
+@functools.lru_cache(maxsize=None)
+def _cached_run(version, driver, i_step, h, t_stop, outputs):
+    result = ehsv.run_step(version, driver, i_step, h=h, t_stop=t_stop, outputs=outputs)
+    for a in result.values():
+        a.setflags(write=False)  # shared between tests: read-only
+    return result
+
+
+def cached_run(version, driver, i_step, *, h, t_stop, outputs=ehsv.DEFAULT_OUTPUTS):
+    """run_step (step at t = 0 from rest, V_supply 72 V, nominal parameters), once per
+    session for each distinct set of arguments."""
+    return _cached_run(version, driver, float(i_step), float(h), float(t_stop), tuple(outputs))
+
+
+@pytest.fixture(scope="session")
+def run():
+    return cached_run
