@@ -1,0 +1,112 @@
+//! Physics checks through the Model API (the same path the C API takes): the paper's
+//! figures for the current loop and the valve, and independence of the step size.
+
+use ehsv_actuator::model::Model;
+use ehsv_actuator::variables::{index_of, vr};
+
+fn model(settings: &[(&str, f64)]) -> Model {
+    let mut m = Model::new();
+    for (name, value) in settings {
+        m.set(index_of(name).unwrap_or_else(|| panic!("{name}")), *value).unwrap();
+    }
+    m.initialize().unwrap();
+    m
+}
+
+/// Steps `m` for `duration` with steps `h`, returning (time, outputs) at every point.
+fn run(m: &mut Model, duration: f64, h: f64, outputs: &[usize]) -> Vec<(f64, Vec<f64>)> {
+    let n = (duration / h).round() as usize;
+    let mut trace = vec![(m.time(), outputs.iter().map(|&o| m.get(o).unwrap()).collect())];
+    for _ in 0..n {
+        m.do_step(m.time(), h).unwrap();
+        trace.push((m.time(), outputs.iter().map(|&o| m.get(o).unwrap()).collect()));
+    }
+    trace
+}
+
+/// Last time the signal is outside +-band*|final - initial| of the final value.
+fn settling_time(trace: &[(f64, f64)], band: f64) -> f64 {
+    let (t0, y0) = trace[0];
+    let y_final = trace.last().unwrap().1;
+    let tol = band * (y_final - y0).abs();
+    let last_out = trace.iter().rposition(|&(_, y)| (y - y_final).abs() > tol).unwrap();
+    trace[last_out + 1].0 - t0
+}
+
+fn current_step(i_step: f64, driver: f64, output: usize, duration: f64, h: f64) -> Vec<(f64, f64)> {
+    let mut m = model(&[("driver", driver)]);
+    m.set(vr::I_REF, i_step).unwrap();
+    run(&mut m, duration, h, &[output]).into_iter().map(|(t, y)| (t, y[0])).collect()
+}
+
+#[test]
+fn row1_opamp_current_settles_in_a_quarter_millisecond() {
+    let trace = current_step(5e-3, 2.0, vr::I_COIL, 2e-3, 1e-7);
+    let ts = settling_time(&trace, 0.02);
+    println!("row 1 settling {:.4} ms", ts * 1e3);
+    assert!((0.225e-3..=0.275e-3).contains(&ts), "{ts}");
+}
+
+#[test]
+fn row2_driver_rides_the_rail_then_holds_5_volts() {
+    let trace = current_step(5e-3, 2.0, vr::U_DRIVER, 5e-3, 1e-6);
+    let at_rail: Vec<f64> = trace.iter().filter(|(_, u)| (u - 72.0).abs() <= 0.05).map(|(t, _)| *t).collect();
+    let span = at_rail.last().unwrap() - at_rail.first().unwrap();
+    println!("row 2 at +72 V for {:.4} ms, final {} V", span * 1e3, trace.last().unwrap().1);
+    assert!(span >= 0.15e-3, "{span}");
+    assert!((trace.last().unwrap().1 - 5.0).abs() < 1e-6);
+}
+
+#[test]
+fn row3_opamp_10ma_settles_in_half_a_millisecond() {
+    let ts = settling_time(&current_step(10e-3, 2.0, vr::I_COIL, 3e-3, 1e-7), 0.02);
+    println!("row 3 settling {:.4} ms", ts * 1e3);
+    assert!((0.45e-3..=0.55e-3).contains(&ts), "{ts}");
+}
+
+#[test]
+fn row6_and_row7_valve_flow_settling() {
+    let ideal = settling_time(&current_step(5e-3, 0.0, vr::Q_VALVE, 40e-3, 1e-6), 0.05);
+    let voltage = settling_time(&current_step(5e-3, 1.0, vr::Q_VALVE, 60e-3, 1e-6), 0.05);
+    println!("row 6 {:.4} ms, row 7 {:.4} ms", ideal * 1e3, voltage * 1e3);
+    assert!((ideal / 3.29e-3 - 1.0).abs() <= 0.03, "{ideal}");
+    assert!((voltage / 10.99e-3 - 1.0).abs() <= 0.03, "{voltage}");
+}
+
+#[test]
+fn row10_static_flow_gain() {
+    for driver in [0.0, 1.0, 2.0] {
+        let mut m = model(&[("driver", driver)]);
+        m.set(vr::I_REF, 4e-3).unwrap();
+        run(&mut m, 0.1, 1e-3, &[]);
+        let gain = m.get(vr::Q_VALVE).unwrap() / (m.get(vr::I_COIL).unwrap() * 1e3);
+        println!("driver {driver}: {gain:e} m3/s per mA");
+        assert!((gain / 2.5268e-5 - 1.0).abs() < 0.005, "{gain}");
+    }
+}
+
+#[test]
+fn results_do_not_depend_on_the_communication_step() {
+    for driver in [0.0, 1.0, 2.0] {
+        let outputs = [vr::I_COIL, vr::U_DRIVER, vr::Q_VALVE];
+        let reference = {
+            let mut m = model(&[("driver", driver)]);
+            m.set(vr::I_REF, 5e-3).unwrap();
+            run(&mut m, 10e-3, 1e-6, &outputs)
+        };
+        for h in [1e-5, 1e-4, 1e-3] {
+            let mut m = model(&[("driver", driver)]);
+            m.set(vr::I_REF, 5e-3).unwrap();
+            let trace = run(&mut m, 10e-3, h, &outputs);
+            let stride = (h / 1e-6).round() as usize;
+            for (k, (t, y)) in trace.iter().enumerate() {
+                let (tr, yr) = &reference[k * stride];
+                assert!((t - tr).abs() < 1e-12);
+                let scales = [5e-3, 5.0, 5e-3 * 25.268e-3];
+                for o in 0..3 {
+                    assert!((y[o] - yr[o]).abs() <= 1e-6 * scales[o], "driver {driver} h {h} t {t} output {o}: {} vs {}", y[o], yr[o]);
+                }
+            }
+        }
+    }
+}
