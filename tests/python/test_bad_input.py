@@ -1,0 +1,42 @@
+"""Bad input gives an Error status with a log message naming the cause, and no crash.
+
+Each case runs in a child Python process (ehsv_scenarios.py bad-input ...), so a crash of
+the FMU shows as a failed test instead of killing pytest. fmpy raises FMICallException
+for a status of Error or Fatal; its .status tells which (3 = Error). The FMU is instantiated
+with loggingOn = false: an FMU must report errors through the logger even then.
+"""
+import json
+import subprocess
+import sys
+
+import pytest
+
+import ehsv_scenarios as ehsv
+
+FMI_ERROR = 3
+
+# case -> (words the Error log message must contain, case-insensitive; any of each tuple)
+EXPECTED = {
+    "nan_input": (("i_ref",), ("nan", "finite")),
+    "negative_step": (("step",), ("-0.0001", "-1e-4", "positive", "negative")),
+    "coil_L_negative": (("coil.L",), ("-1", "range", "positive")),
+}
+
+
+@pytest.mark.parametrize("case", ehsv.BAD_INPUT_CASES)
+def test_bad_input_is_an_error_with_a_log_message(version, case):
+    proc = subprocess.run(
+        [sys.executable, str(ehsv.REPO / "cosim-examples" / "ehsv_scenarios.py"), "bad-input", version, case],
+        capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, (f"child process ended with {proc.returncode} (a crash is negative)\n"
+                                  f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}")
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result["exception"] is not None, f"no Error status: {result}"
+    assert result["status"] == FMI_ERROR, f"expected fmiError (3): {result}"
+    errors = [msg for status, _category, msg in result["log"] if status == FMI_ERROR]
+    assert errors, f"no log message with status Error; log: {result['log']}"
+    text = "\n".join(errors).lower()
+    for alternatives in EXPECTED[case]:
+        assert any(word.lower() in text for word in alternatives), \
+            f"Error log does not name the cause ({alternatives}): {errors}"
+    assert result["freed"]

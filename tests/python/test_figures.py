@@ -1,0 +1,72 @@
+"""The published figures the FMU must reproduce (rows 1, 2, 3, 6, 7, 10), both archives.
+
+Settling time: the last time the signal is outside +-2 % (currents) or +-5 % (flows) of
+the step size around its final value, measured from the step (ehsv.settling_time). Every
+step is 0 -> i_ref at t = 0 from rest, V_supply = 72 V, nominal parameters.
+"""
+import numpy as np
+import pytest
+
+import ehsv_scenarios as ehsv
+
+MA = 1e-3
+US = 1e-6  # output interval for the current-loop transients
+
+
+@pytest.fixture(scope="module")
+def pi_5ma(version, run):
+    return run(version, "opamp_pi", 5 * MA, h=US, t_stop=2e-3)
+
+
+def test_row1_opamp_pi_5mA_settles_in_0_25_ms(pi_5ma):
+    ts = ehsv.settling_time(pi_5ma["time"], pi_5ma["i_coil"], 0.0, 0.02)
+    assert 0.225e-3 <= ts <= 0.275e-3, f"2 % settling time {ts * 1e3:.4f} ms"
+    assert pi_5ma["i_coil"][-1] == pytest.approx(5 * MA, rel=1e-6)
+
+
+def test_row2_driver_at_the_72V_rail_then_5V(pi_5ma):
+    t, u = pi_5ma["time"], pi_5ma["u_driver"]
+    at_rail = ehsv.time_at_rail(t, u, 0.0, 72.0, tol=0.05)
+    assert at_rail >= 0.15e-3, f"u_driver within 0.05 V of +72 V for {at_rail * 1e3:.4f} ms only"
+    assert np.max(u) <= 72.0 + 1e-9, "u_driver above the +72 V rail"
+    # final: R * i = 1000 ohm * 5 mA
+    assert u[-1] == pytest.approx(5.0, abs=0.01)
+
+
+def test_row2_saturation_flag_follows_the_rail(pi_5ma):
+    t, u, sat = pi_5ma["time"], pi_5ma["u_driver"], pi_5ma["driver_saturated"]
+    k = int(round(0.1e-3 / US))  # 0.1 ms: deep in the rail stretch
+    assert u[k] == pytest.approx(72.0, abs=0.05)
+    assert sat[k] == 1.0
+    assert sat[0] == 0.0 and sat[-1] == 0.0
+
+
+def test_row3_opamp_pi_10mA_settles_in_0_5_ms(version, run):
+    r = run(version, "opamp_pi", 10 * MA, h=US, t_stop=3e-3)
+    ts = ehsv.settling_time(r["time"], r["i_coil"], 0.0, 0.02)
+    assert 0.45e-3 <= ts <= 0.55e-3, f"2 % settling time {ts * 1e3:.4f} ms"
+    assert r["i_coil"][-1] == pytest.approx(10 * MA, rel=1e-6)
+
+
+def test_row6_ideal_current_flow_settles_in_3_29_ms(version, run):
+    r = run(version, "ideal_current", 5 * MA, h=1e-5, t_stop=30e-3)
+    ts = ehsv.settling_time(r["time"], r["Q_valve"], 0.0, 0.05)
+    assert ts == pytest.approx(3.29e-3, rel=0.03), f"5 % settling time {ts * 1e3:.4f} ms"
+
+
+def test_row7_voltage_driver_flow_settles_in_10_99_ms(version, run):
+    r = run(version, "voltage", 5 * MA, h=1e-5, t_stop=80e-3)
+    ts = ehsv.settling_time(r["time"], r["Q_valve"], 0.0, 0.05)
+    assert ts == pytest.approx(10.99e-3, rel=0.03), f"5 % settling time {ts * 1e3:.4f} ms"
+
+
+@pytest.mark.parametrize("driver", list(ehsv.DRIVERS))
+def test_row10_steady_state_flow_gain(version, run, driver):
+    i = 5 * MA
+    r = run(version, driver, i, h=1e-4, t_stop=0.1)
+    # steady state: nothing moves any more in the last 10 ms
+    assert abs(r["Q_valve"][-1] - r["Q_valve"][-101]) <= 1e-6 * abs(r["Q_valve"][-1])
+    assert r["i_coil"][-1] == pytest.approx(i, rel=1e-6)
+    gain = r["Q_valve"][-1] / r["i_coil"][-1]  # m3/s per A
+    assert gain == pytest.approx(0.025268, rel=0.005), f"{gain * 1e-3:.5e} m3/s per mA"
+    assert r["Q_valve"][-1] == pytest.approx(ehsv.NOMINAL["valve.K3"] * r["x_spool"][-1], rel=1e-12)
