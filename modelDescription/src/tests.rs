@@ -1,0 +1,236 @@
+//! Parse the rendered XML back with quick-xml's reader and check it against the table.
+
+use super::*;
+use quick_xml::events::{BytesStart, Event};
+use quick_xml::XmlVersion;
+use std::collections::HashMap;
+
+/// Just enough of a DOM for the checks: element name, attributes, children.
+#[derive(Debug, Default)]
+struct Element {
+    name: String,
+    attrs: HashMap<String, String>,
+    children: Vec<Element>,
+}
+
+impl Element {
+    fn attr(&self, name: &str) -> &str {
+        self.attrs.get(name).unwrap_or_else(|| panic!("<{}> has no {name}", self.name))
+    }
+    fn child(&self, name: &str) -> &Element {
+        self.children.iter().find(|c| c.name == name).unwrap_or_else(|| panic!("<{}> has no <{name}>", self.name))
+    }
+    fn all<'a>(&'a self, name: &'a str) -> impl Iterator<Item = &'a Element> + 'a {
+        self.children.iter().filter(move |c| c.name == name)
+    }
+}
+
+fn element(start: &BytesStart) -> Element {
+    let attrs = start
+        .attributes()
+        .map(|a| {
+            let a = a.expect("well-formed attribute");
+            let key = a.key.as_ref().to_string();
+            let value = a.normalized_value(XmlVersion::Implicit1_0).expect("valid escapes").into_owned();
+            (key, value)
+        })
+        .collect();
+    Element { name: start.name().as_ref().to_string(), attrs, children: vec![] }
+}
+
+/// Parses the whole document; panics on malformed XML.
+fn parse(xml: &str) -> Element {
+    let mut reader = quick_xml::Reader::from_str(xml);
+    let mut stack = vec![Element::default()];
+    loop {
+        match reader.read_event().expect("well-formed XML") {
+            Event::Start(start) => stack.push(element(&start)),
+            Event::Empty(start) => stack.last_mut().unwrap().children.push(element(&start)),
+            Event::End(_) => {
+                let done = stack.pop().unwrap();
+                stack.last_mut().unwrap().children.push(done);
+            }
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    assert_eq!(stack.len(), 1, "unclosed elements");
+    stack.pop().unwrap().children.pop().expect("a root element")
+}
+
+fn number(text: &str) -> f64 {
+    text.parse().unwrap_or_else(|_| panic!("{text:?} is not a number"))
+}
+
+/// Checks both versions share: root, token, units, variable attributes in table order.
+fn check_common(root: &Element, token_attribute: &str) {
+    assert_eq!(root.name, "fmiModelDescription");
+    assert_eq!(root.attr("modelName"), "EhsvActuator");
+    assert_eq!(root.attr(token_attribute), ehsv_actuator::variables::interface_token());
+    assert_eq!(root.attr("variableNamingConvention"), "structured");
+    assert_eq!(root.child("CoSimulation").attr("modelIdentifier"), "EhsvActuator");
+
+    let units = root.child("UnitDefinitions");
+    assert_eq!(units.all("Unit").count(), UNITS.len());
+    let volt = units.all("Unit").find(|u| u.attr("name") == "V").unwrap();
+    let base = &volt.child("BaseUnit").attrs;
+    assert_eq!((base["kg"].as_str(), base["m"].as_str(), base["s"].as_str(), base["A"].as_str()), ("1", "2", "-3", "-1"));
+    assert!(!base.contains_key("K"), "zero exponents are omitted");
+    let flow = units.all("Unit").find(|u| u.attr("name") == "m3/s").unwrap();
+    let lpm = flow.child("DisplayUnit");
+    assert_eq!((lpm.attr("name"), number(lpm.attr("factor"))), ("L/min", 6e4));
+
+    let experiment = root.child("DefaultExperiment");
+    assert_eq!(number(experiment.attr("stopTime")), 0.01);
+    assert_eq!(number(experiment.attr("stepSize")), 1e-4);
+}
+
+/// The `<Item>`s of each enumeration type are exactly those of ENUMERATIONS, in order.
+fn check_items<'a>(types: impl Iterator<Item = (&'a str, &'a Element)>) {
+    let rendered: Vec<(String, Vec<(i64, String)>)> = types
+        .map(|(name, items)| {
+            let items = items.all("Item").map(|i| (i.attr("value").parse().unwrap(), i.attr("name").to_string()));
+            (name.to_string(), items.collect())
+        })
+        .collect();
+    let expected: Vec<(String, Vec<(i64, String)>)> = ENUMERATIONS
+        .iter()
+        .map(|e| (e.name.to_string(), e.items.iter().map(|(v, n, _)| (*v, n.to_string())).collect()))
+        .collect();
+    assert_eq!(rendered, expected);
+}
+
+/// Attributes of a variable that both versions write the same way.
+fn check_variable(element: &Element, index: usize) {
+    let v = &VARIABLES[index];
+    assert_eq!(element.attr("name"), v.name);
+    assert_eq!(element.attr("valueReference"), index.to_string());
+    assert_eq!(element.attr("causality"), causality_name(v.causality));
+    assert_eq!(element.attr("variability"), variability_name(v.variability));
+    assert_eq!(element.attrs.get("initial").map(String::as_str), initial_name(v));
+}
+
+/// Attributes of the type element (FMI 2 child, FMI 3 the variable element itself).
+fn check_value(value: &Element, v: &Variable) {
+    let start = value.attrs.get("start");
+    assert_eq!(start.is_some(), v.has_start(), "{}: start", v.name);
+    match v.ty {
+        VarType::Real => {
+            assert_eq!(value.attrs.get("unit").map(String::as_str), v.unit);
+            assert_eq!(value.attrs.get("displayUnit").map(String::as_str), v.display_unit);
+            if let Some(start) = start {
+                assert_eq!(number(start), v.start, "{}: start round-trips", v.name);
+            }
+            assert_eq!(value.attrs.get("min").map(|m| number(m)), v.min);
+            assert_eq!(value.attrs.get("max").map(|m| number(m)), v.max);
+        }
+        VarType::Boolean => {
+            if let Some(start) = start {
+                assert_eq!(start, if v.start != 0.0 { "true" } else { "false" });
+            }
+        }
+        VarType::Enumeration(type_name) => {
+            assert_eq!(value.attr("declaredType"), type_name);
+            if let Some(start) = start {
+                assert_eq!(start.parse::<i64>().unwrap() as f64, v.start);
+            }
+        }
+    }
+}
+
+#[test]
+fn fmi2_matches_table() {
+    let xml = fmi2_xml();
+    let root = parse(&xml);
+    assert_eq!(root.attr("fmiVersion"), "2.0");
+    check_common(&root, "guid");
+    let cs = root.child("CoSimulation");
+    assert_eq!(cs.attr("canGetAndSetFMUstate"), "true");
+    assert_eq!(cs.attr("canRunAsynchronuously"), "false");
+
+    let types = root.child("TypeDefinitions").all("SimpleType");
+    check_items(types.map(|t| (t.attr("name"), t.child("Enumeration"))));
+
+    let variables: Vec<&Element> = root.child("ModelVariables").all("ScalarVariable").collect();
+    assert_eq!(variables.len(), VARIABLES.len());
+    for (index, element) in variables.iter().enumerate() {
+        check_variable(element, index);
+        let v = &VARIABLES[index];
+        let type_name = match v.ty {
+            VarType::Real => "Real",
+            VarType::Boolean => "Boolean",
+            VarType::Enumeration(_) => "Enumeration",
+        };
+        assert_eq!(element.children.len(), 1);
+        check_value(element.child(type_name), v);
+    }
+
+    // Unknown/@index is 1-based into ModelVariables.
+    let structure = root.child("ModelStructure");
+    let outputs: Vec<usize> = structure.child("Outputs").all("Unknown").map(|u| u.attr("index").parse().unwrap()).collect();
+    let expected: Vec<usize> =
+        (0..VARIABLES.len()).filter(|&i| VARIABLES[i].causality == Causality::Output).map(|i| i + 1).collect();
+    assert!(!outputs.is_empty());
+    assert_eq!(outputs, expected);
+    for index in &outputs {
+        assert_eq!(variables[index - 1].attr("causality"), "output");
+    }
+    let initial: Vec<&str> = structure.child("InitialUnknowns").all("Unknown").map(|u| u.attr("index")).collect();
+    for index in initial {
+        assert_eq!(variables[index.parse::<usize>().unwrap() - 1].attr("initial"), "calculated");
+    }
+}
+
+#[test]
+fn fmi3_matches_table() {
+    let xml = fmi3_xml();
+    let root = parse(&xml);
+    assert_eq!(root.attr("fmiVersion"), "3.0");
+    check_common(&root, "instantiationToken");
+    let cs = root.child("CoSimulation");
+    assert_eq!(cs.attr("canGetAndSetFMUState"), "true");
+    assert_eq!(cs.attr("hasEventMode"), "false");
+
+    let types = root.child("TypeDefinitions").all("EnumerationType");
+    check_items(types.map(|t| (t.attr("name"), t)));
+
+    let variables = &root.child("ModelVariables").children;
+    assert_eq!(variables.len(), VARIABLES.len());
+    for (index, element) in variables.iter().enumerate() {
+        check_variable(element, index);
+        let v = &VARIABLES[index];
+        let type_name = match v.ty {
+            VarType::Real => "Float64",
+            VarType::Boolean => "Boolean",
+            VarType::Enumeration(_) => "Enumeration",
+        };
+        assert_eq!(element.name, type_name);
+        check_value(element, v);
+    }
+
+    let structure = root.child("ModelStructure");
+    let outputs: Vec<usize> = structure.all("Output").map(|u| u.attr("valueReference").parse().unwrap()).collect();
+    assert!(!outputs.is_empty());
+    for vr in &outputs {
+        assert_eq!(VARIABLES[*vr].causality, Causality::Output);
+    }
+    assert_eq!(outputs.len(), VARIABLES.iter().filter(|v| v.causality == Causality::Output).count());
+    assert_eq!(structure.all("InitialUnknown").count(), outputs.len());
+}
+
+#[test]
+fn large_and_small_numbers_print_parseably() {
+    let xml = fmi2_xml();
+    assert!(xml.contains("start=\"160000\""), "driver.Kp");
+    assert!(xml.contains("start=\"0.0000167742\""), "valve.A_s");
+    assert!(!xml.contains("inf") && !xml.contains("NaN"));
+}
+
+#[test]
+fn markdown_has_a_row_per_variable() {
+    let md = variables_markdown();
+    assert_eq!(md.lines().count(), 2 + VARIABLES.len());
+    assert!(md.contains("| `coil.L` | parameter | H | 3.2 | (0, +inf) |"), "{md}");
+    assert!(md.contains("| 2 (opamp_pi) |"));
+    assert!(enumerations_markdown().contains("- 2 `opamp_pi`"));
+}
