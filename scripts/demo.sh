@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# THE build + demo command: builds both FMUs and runs the 0 -> 5 mA current-step demo
+# (prints the settling time and driver voltage, writes out/current_step.png).
+# Extra arguments go to the demo, e.g. scripts/demo.sh --fmi3
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+scripts/setup-venv.sh
+cargo run --release -p build-fmu
+.venv/bin/python cosim-examples/current_step.py "$@"

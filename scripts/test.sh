@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# THE test command: every test of the project.
+#   1. Python venv with the pinned tools (scripts/setup-venv.sh)
+#   2. cargo test --workspace --release         (Rust unit and integration tests)
+#   3. cargo run --release -p build-fmu         (target/fmu/EhsvActuator-fmi{2,3}.fmu)
+#   4. pytest tests/python                      (both archives through fmpy + fmutool)
+#   5. benchmark smoke run through the C API    (bench --quick)
+# Every stage runs even if an earlier one failed (pytest then says what is missing);
+# the exit status is non-zero if any stage failed.
+set -uo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+failed=()
+stage() {
+    local name="$1"; shift
+    echo
+    echo "=== $name: $*"
+    if "$@"; then
+        echo "=== $name: ok"
+    else
+        echo "=== $name: FAILED (exit $?)"
+        failed+=("$name")
+    fi
+}
+
+scripts/setup-venv.sh || { echo "=== venv: FAILED, cannot run the Python tests"; exit 1; }
+
+stage cargo-test cargo test --workspace --release
+stage build-fmu cargo run --release -p build-fmu
+stage pytest .venv/bin/python -m pytest tests/python -q
+stage bench cargo run --release -p ehsv-tests --bin bench -- --quick
+
+echo
+if ((${#failed[@]})); then
+    echo "scripts/test.sh: FAILED stages: ${failed[*]}"
+    exit 1
+fi
+echo "scripts/test.sh: all stages passed"
