@@ -173,7 +173,10 @@ fn model_variable(value_reference: u32, v: &'static Variable) -> ModelVariable {
             min: v.min,
             max: v.max,
         },
-        VarType::Boolean => ModelVariable::Boolean { common, start: boolean_start(v) },
+        VarType::Boolean => ModelVariable::Boolean {
+            common,
+            start: boolean_start(v),
+        },
         VarType::Enumeration(declared_type) => ModelVariable::Enumeration {
             common,
             declared_type,
@@ -185,7 +188,8 @@ fn model_variable(value_reference: u32, v: &'static Variable) -> ModelVariable {
 }
 
 fn unknowns(rows: impl Iterator<Item = (u32, &'static Variable)>) -> Vec<Unknown> {
-    rows.map(|(value_reference, _)| Unknown { value_reference }).collect()
+    rows.map(|(value_reference, _)| Unknown { value_reference })
+        .collect()
 }
 
 pub(crate) fn model_description() -> ModelDescription {
@@ -216,11 +220,17 @@ pub(crate) fn model_description() -> ModelDescription {
         type_definitions: TypeDefinitions {
             enumeration_types: ENUMERATIONS
                 .iter()
-                .map(|e| EnumerationType { name: e.name, description: e.description, items: items(e.items) })
+                .map(|e| EnumerationType {
+                    name: e.name,
+                    description: e.description,
+                    items: items(e.items),
+                })
                 .collect(),
         },
         default_experiment: DEFAULT_EXPERIMENT,
-        model_variables: ModelVariables { variables: table().map(|(vr, v)| model_variable(vr, v)).collect() },
+        model_variables: ModelVariables {
+            variables: table().map(|(vr, v)| model_variable(vr, v)).collect(),
+        },
         model_structure: ModelStructure {
             outputs: unknowns(outputs()),
             initial_unknowns: unknowns(initial_unknowns()),

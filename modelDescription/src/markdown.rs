@@ -15,7 +15,11 @@ pub fn variables_markdown() -> String {
             (Some(u), None) => u.to_string(),
             (None, _) => String::new(),
         };
-        let range = if v.min.is_some() || v.max.is_some() { v.range_text() } else { String::new() };
+        let range = if v.min.is_some() || v.max.is_some() {
+            v.range_text()
+        } else {
+            String::new()
+        };
         md += &format!(
             "| {vr} | `{}` | {} | {} | {} | {} | {} |\n",
             v.name,
@@ -51,7 +55,8 @@ fn start_text(v: &Variable) -> String {
         VarType::Boolean => (v.start != 0.0).to_string(),
         VarType::Enumeration(type_name) => {
             let value = v.start as i64;
-            let item = enumeration(type_name).and_then(|e| e.items.iter().find(|(n, _, _)| *n == value));
+            let item =
+                enumeration(type_name).and_then(|e| e.items.iter().find(|(n, _, _)| *n == value));
             match item {
                 Some((_, name, _)) => format!("{value} ({name})"),
                 None => value.to_string(),
