@@ -30,6 +30,7 @@ scripts/setup-venv.sh || { echo "=== venv: FAILED, cannot run the Python tests";
 stage cargo-test cargo test --workspace --release
 stage build-fmu cargo run --release -p build-fmu
 stage pytest .venv/bin/python -m pytest tests/python -q
+stage cdylib cargo build --release -p ehsv-actuator
 stage bench cargo run --release -p ehsv-tests --bin bench -- --quick
 
 echo
