@@ -212,3 +212,30 @@ fn escape(text: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn markdown_cells_keep_empty_cells_and_escaped_pipes() {
+        assert_eq!(
+            markdown_cells("| 0 | `time` |  | a \\| b |"),
+            ["0", "`time`", "", "a | b"]
+        );
+    }
+
+    #[test]
+    fn documentation_has_a_row_per_variable() {
+        let html = documentation_html();
+        let variables = variables_markdown().lines().count() - 2; // minus header and separator
+        assert_eq!(html.matches("<tr>").count(), 1 + variables);
+        assert!(html.contains("<code>coil.L</code>"));
+    }
+
+    #[test]
+    fn host_platform_names_exist() {
+        assert!(fmi2_platform().unwrap().ends_with("64") || cfg!(target_pointer_width = "32"));
+        assert!(fmi3_platform().unwrap().contains('-'));
+    }
+}
