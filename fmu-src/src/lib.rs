@@ -11,3 +11,6 @@ pub mod model;
 pub mod physics;
 pub mod units;
 pub mod variables;
+pub mod fmi2;
+pub mod fmi3;
+pub mod fmi_common;
