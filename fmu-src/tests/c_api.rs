@@ -1,0 +1,952 @@
+//! The FMI 2.0 / 3.0 C API called directly through the rlib (the same `extern "C"`
+//! functions the cdylib exports). Tests the mechanics of the API — call sequence,
+//! argument checks, logging, FMU states — not the physics values.
+
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::ptr::{null, null_mut};
+use std::sync::Mutex;
+
+use ehsv_actuator::fmi2::*;
+use ehsv_actuator::fmi3::*;
+use ehsv_actuator::fmi_common::{Fmi2Logger, Status, LOG_CATEGORIES};
+use ehsv_actuator::variables::{interface_token, vr};
+
+// ---------------------------------------------------------------- logging harness
+
+#[derive(Clone, Debug)]
+struct Line {
+    instance: String,
+    status: c_int,
+    category: String,
+    message: String,
+}
+
+#[derive(Default)]
+struct Log(Mutex<Vec<Line>>);
+
+impl Log {
+    fn lines(&self) -> Vec<Line> {
+        self.0.lock().unwrap().clone()
+    }
+    fn clear(&self) {
+        self.0.lock().unwrap().clear();
+    }
+    /// Is there a line containing every needle?
+    fn has(&self, needles: &[&str]) -> bool {
+        self.lines().iter().any(|l| needles.iter().all(|n| l.message.contains(n)))
+    }
+    fn dump(&self) -> String {
+        self.lines().iter().map(|l| format!("[{} {} {}] {}\n", l.instance, l.status, l.category, l.message)).collect()
+    }
+    fn env(&self) -> *mut c_void {
+        self as *const Log as *mut c_void
+    }
+}
+
+unsafe fn text(p: *const c_char) -> String {
+    if p.is_null() {
+        "<NULL>".into()
+    } else {
+        unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+    }
+}
+
+/// The FMI 2 logger with its fixed arguments only; see [`fmi2_logger`].
+extern "C" fn fmi2_logger_fixed(
+    env: *mut c_void,
+    instance: *const c_char,
+    status: c_int,
+    category: *const c_char,
+    message: *const c_char,
+) {
+    // SAFETY: env is the &Log given at instantiation; strings are C strings from the FMU.
+    let log = unsafe { &*(env as *const Log) };
+    let line = unsafe { Line { instance: text(instance), status, category: text(category), message: text(message) } };
+    log.0.lock().unwrap().push(line);
+}
+
+/// TEST ONLY: stable Rust cannot define a C-variadic function, so the FMI 2 logger is a
+/// fixed-argument function cast to the variadic pointer type. The FMU passes no variadic
+/// arguments, and on the supported ABIs (x86_64 SysV, aarch64) the fixed arguments of a
+/// variadic call are passed exactly like those of a non-variadic one — this is what C
+/// importers effectively rely on as well. The message is the printf *format* (with '%'
+/// escaped as "%%"), which the tests check verbatim.
+fn fmi2_logger() -> Fmi2Logger {
+    type Fixed = extern "C" fn(*mut c_void, *const c_char, c_int, *const c_char, *const c_char);
+    // SAFETY: see above; both are plain function pointers of the same size.
+    unsafe { std::mem::transmute::<Fixed, Fmi2Logger>(fmi2_logger_fixed) }
+}
+
+extern "C" fn fmi3_logger(env: *mut c_void, status: c_int, category: *const c_char, message: *const c_char) {
+    // SAFETY: as in fmi2_logger_fixed.
+    let log = unsafe { &*(env as *const Log) };
+    let line = unsafe { Line { instance: String::new(), status, category: text(category), message: text(message) } };
+    log.0.lock().unwrap().push(line);
+}
+
+const OK: Status = Status::OK;
+const ERROR: Status = Status::Error;
+
+fn token() -> CString {
+    CString::new(interface_token()).unwrap()
+}
+
+// ---------------------------------------------------------------- FMI 2 harness
+
+struct Fmu2 {
+    c: fmi2Component,
+    log: Box<Log>,
+}
+
+impl Fmu2 {
+    /// The instance, or the log of the refusal.
+    fn try_new(name: &str, fmu_type: fmi2Type, guid: &str) -> Result<Fmu2, Box<Log>> {
+        // The Box keeps the Log at a fixed address: it is the componentEnvironment.
+        let log = Box::<Log>::default();
+        let functions = fmi2CallbackFunctions {
+            logger: Some(fmi2_logger()),
+            allocateMemory: None,
+            freeMemory: None,
+            stepFinished: None,
+            componentEnvironment: log.env(),
+        };
+        let name = CString::new(name).unwrap();
+        let guid = CString::new(guid).unwrap();
+        let c = unsafe {
+            fmi2Instantiate(name.as_ptr(), fmu_type, guid.as_ptr(), null(), &functions, fmi2False, fmi2False)
+        };
+        if c.is_null() {
+            Err(log)
+        } else {
+            Ok(Fmu2 { c, log })
+        }
+    }
+
+    fn new(name: &str) -> Fmu2 {
+        Self::try_new(name, fmi2CoSimulation, &interface_token()).unwrap_or_else(|log| panic!("{}", log.dump()))
+    }
+
+    /// Instantiated, set up from 0 (no stop time), initialised.
+    fn initialized(name: &str) -> Fmu2 {
+        let f = Self::new(name);
+        unsafe {
+            assert_eq!(fmi2SetupExperiment(f.c, fmi2False, 0.0, 0.0, fmi2False, 0.0), OK);
+            assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+            assert_eq!(fmi2ExitInitializationMode(f.c), OK, "{}", f.log.dump());
+        }
+        f
+    }
+
+    fn get_real(&self, r: usize) -> (Status, f64) {
+        let mut v = f64::NAN;
+        let s = unsafe { fmi2GetReal(self.c, &(r as u32), 1, &mut v) };
+        (s, v)
+    }
+    fn set_real(&self, r: usize, v: f64) -> Status {
+        unsafe { fmi2SetReal(self.c, &(r as u32), 1, &v) }
+    }
+    fn step(&self, t: f64, h: f64) -> Status {
+        unsafe { fmi2DoStep(self.c, t, h, fmi2True) }
+    }
+    fn time(&self) -> f64 {
+        self.get_real(vr::TIME).1
+    }
+    fn outputs(&self) -> Vec<f64> {
+        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE].map(|r| r as u32);
+        let mut v = [0.0; 6];
+        assert_eq!(unsafe { fmi2GetReal(self.c, refs.as_ptr(), refs.len(), v.as_mut_ptr()) }, OK);
+        v.to_vec()
+    }
+}
+
+impl Drop for Fmu2 {
+    fn drop(&mut self) {
+        unsafe { fmi2FreeInstance(self.c) }
+    }
+}
+
+// ---------------------------------------------------------------- FMI 2 tests
+
+#[test]
+fn fmi2_version_and_platform() {
+    unsafe {
+        assert_eq!(CStr::from_ptr(fmi2GetVersion()).to_str().unwrap(), "2.0");
+        assert_eq!(CStr::from_ptr(fmi2GetTypesPlatform()).to_str().unwrap(), "default");
+    }
+}
+
+#[test]
+fn fmi2_instantiate_checks_guid_type_and_name() {
+    let log = Fmu2::try_new("bad_guid", fmi2CoSimulation, "{00000000-0000-0000-0000-000000000000}").err().unwrap();
+    assert!(log.has(&["fmi2Instantiate", "fmuGUID", "does not match"]), "{}", log.dump());
+    assert_eq!(log.lines()[0].status, Status::Error as c_int);
+    assert_eq!(log.lines()[0].instance, "bad_guid");
+
+    let log = Fmu2::try_new("me", fmi2ModelExchange, &interface_token()).err().unwrap();
+    assert!(log.has(&["fmuType 0", "Co-Simulation"]), "{}", log.dump());
+
+    let log = Fmu2::try_new("", fmi2CoSimulation, &interface_token()).err().unwrap();
+    assert!(log.has(&["instanceName"]), "{}", log.dump());
+
+    // NULL callbacks and NULL resource location are accepted (nothing is logged then).
+    let name = CString::new("quiet").unwrap();
+    let t = token();
+    unsafe {
+        let c = fmi2Instantiate(name.as_ptr(), fmi2CoSimulation, t.as_ptr(), null(), null(), fmi2False, fmi2True);
+        assert!(!c.is_null());
+        assert_eq!(fmi2DoStep(c, 0.0, 1e-3, fmi2False), ERROR); // error without a logger: no crash
+        fmi2FreeInstance(c);
+        // NULL GUID is refused.
+        assert!(fmi2Instantiate(name.as_ptr(), fmi2CoSimulation, null(), null(), null(), 0, 0).is_null());
+    }
+}
+
+#[test]
+fn fmi2_happy_path() {
+    let f = Fmu2::new("happy");
+    unsafe {
+        // Outputs can be read before initialisation (initial equilibrium).
+        assert_eq!(f.get_real(vr::I_COIL).0, OK);
+        assert_eq!(fmi2SetupExperiment(f.c, fmi2True, 1e-6, 0.0, fmi2True, 0.01), OK);
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(f.set_real(vr::I_REF, 0.01), OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK, "{}", f.log.dump());
+        let h = 1e-4;
+        for k in 0..5 {
+            assert_eq!(f.step(k as f64 * h, h), OK, "{}", f.log.dump());
+        }
+        let out = f.outputs();
+        assert!(out.iter().all(|v| v.is_finite()), "{out:?}");
+        assert!((out[0] - 5.0 * h).abs() < 1e-15);
+
+        let mut sat = -1;
+        assert_eq!(fmi2GetBoolean(f.c, &(vr::DRIVER_SATURATED as u32), 1, &mut sat), OK);
+        assert!(sat == 0 || sat == 1);
+        let mut driver = -1;
+        assert_eq!(fmi2GetInteger(f.c, &(vr::DRIVER as u32), 1, &mut driver), OK);
+        assert_eq!(driver, 2);
+
+        let mut t = 0.0;
+        assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut t), OK);
+        assert!((t - 5.0 * h).abs() < 1e-15);
+        let mut terminated = fmi2True;
+        assert_eq!(fmi2GetBooleanStatus(f.c, fmi2Terminated, &mut terminated), OK);
+        assert_eq!(terminated, fmi2False);
+        let mut st = Status::OK;
+        assert_eq!(fmi2GetStatus(f.c, fmi2DoStepStatus, &mut st), Status::Discard);
+        let mut i = 0;
+        assert_eq!(fmi2GetIntegerStatus(f.c, fmi2LastSuccessfulTime, &mut i), Status::Discard);
+        let mut s: fmi2String = null();
+        assert_eq!(fmi2GetStringStatus(f.c, fmi2PendingStatus, &mut s), Status::Discard);
+        assert_eq!(fmi2CancelStep(f.c), ERROR);
+
+        assert_eq!(fmi2Terminate(f.c), OK);
+        assert_eq!(f.get_real(vr::X_SPOOL).0, OK, "getters work after Terminate");
+        assert_eq!(f.set_real(vr::I_REF, 0.0), ERROR, "no setters after Terminate");
+        assert_eq!(f.step(5.0 * h, h), ERROR);
+        assert_eq!(fmi2Terminate(f.c), ERROR);
+    }
+    assert!(f.log.lines().iter().all(|l| l.instance == "happy"));
+}
+
+#[test]
+fn fmi2_illegal_call_sequence() {
+    let f = Fmu2::new("seq");
+    unsafe {
+        assert_eq!(f.step(0.0, 1e-3), ERROR);
+        assert!(f.log.has(&["fmi2DoStep", "Instantiated"]), "{}", f.log.dump());
+        assert_eq!(fmi2ExitInitializationMode(f.c), ERROR);
+        assert_eq!(fmi2Terminate(f.c), ERROR);
+        let mut t = 0.0;
+        assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut t), ERROR);
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), ERROR);
+        assert!(f.log.has(&["fmi2SetupExperiment", "InitializationMode"]));
+        assert_eq!(fmi2EnterInitializationMode(f.c), ERROR);
+        assert_eq!(f.step(0.0, 1e-3), ERROR);
+        // The errors did not break the instance.
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+        assert_eq!(f.step(0.0, 1e-3), OK);
+        assert_eq!(fmi2EnterInitializationMode(f.c), ERROR);
+        assert!(f.log.has(&["fmi2EnterInitializationMode", "StepComplete"]), "{}", f.log.dump());
+    }
+}
+
+#[test]
+fn fmi2_value_references_types_and_pointers() {
+    let f = Fmu2::initialized("refs");
+    unsafe {
+        let mut v = 0.0;
+        assert_eq!(fmi2GetReal(f.c, &999, 1, &mut v), ERROR);
+        assert!(f.log.has(&["fmi2GetReal", "unknown value reference 999"]), "{}", f.log.dump());
+        assert_eq!(fmi2SetReal(f.c, &27, 1, &v), ERROR);
+
+        assert_eq!(fmi2GetReal(f.c, &(vr::DRIVER_SATURATED as u32), 1, &mut v), ERROR);
+        assert!(f.log.has(&["driver_saturated", "Boolean", "not Real"]), "{}", f.log.dump());
+        let mut i = 0;
+        assert_eq!(fmi2GetInteger(f.c, &(vr::I_REF as u32), 1, &mut i), ERROR);
+        assert!(f.log.has(&["i_ref", "Real", "not Integer"]));
+        assert_eq!(fmi2GetReal(f.c, &(vr::DRIVER as u32), 1, &mut v), ERROR);
+        assert!(f.log.has(&["driver", "Enumeration DriverType"]));
+
+        assert_eq!(f.set_real(vr::I_COIL, 1.0), ERROR);
+        assert!(f.log.has(&["i_coil", "output", "cannot be set"]));
+        assert_eq!(f.set_real(vr::TIME, 1.0), ERROR);
+
+        // NULL arrays with n > 0; n = 0 with NULL is fine.
+        assert_eq!(fmi2GetReal(f.c, null(), 1, &mut v), ERROR);
+        assert_eq!(fmi2GetReal(f.c, &1, 1, null_mut()), ERROR);
+        assert!(f.log.has(&["values is NULL"]), "{}", f.log.dump());
+        assert_eq!(fmi2GetReal(f.c, null(), 0, null_mut()), OK);
+        assert_eq!(fmi2SetReal(f.c, null(), 0, null()), OK);
+        // No String variables.
+        assert_eq!(fmi2GetString(f.c, null(), 0, null_mut()), OK);
+        let mut s: fmi2String = null();
+        assert_eq!(fmi2GetString(f.c, &1, 1, &mut s), ERROR);
+        assert!(f.log.has(&["i_ref", "not String"]));
+        assert_eq!(fmi2SetString(f.c, &999, 1, &s), ERROR);
+
+        // A failing multi-value set changes nothing.
+        let refs = [vr::I_REF as u32, vr::V_SUPPLY as u32];
+        assert_eq!(fmi2SetReal(f.c, refs.as_ptr(), 2, [0.02, -5.0].as_ptr()), ERROR);
+        assert!(f.log.has(&["V_supply"]));
+        assert_eq!(f.get_real(vr::I_REF).1, 0.0);
+        assert_eq!(fmi2SetReal(f.c, refs.as_ptr(), 2, [0.02, 50.0].as_ptr()), OK);
+        assert_eq!(f.get_real(vr::I_REF).1, 0.02);
+        assert_eq!(f.get_real(vr::V_SUPPLY).1, 50.0);
+
+        // Null instance: Error, nothing else.
+        assert_eq!(fmi2GetReal(null_mut(), &1, 1, &mut v), ERROR);
+        assert_eq!(fmi2DoStep(null_mut(), 0.0, 1.0, 0), ERROR);
+        assert_eq!(fmi2Reset(null_mut()), ERROR);
+        fmi2FreeInstance(null_mut());
+    }
+}
+
+#[test]
+fn fmi2_nan_input_is_refused_and_instance_keeps_stepping() {
+    let f = Fmu2::initialized("nan");
+    assert_eq!(f.set_real(vr::I_REF, 0.005), OK);
+    assert_eq!(f.step(0.0, 1e-4), OK);
+    assert_eq!(f.set_real(vr::I_REF, f64::NAN), ERROR);
+    assert!(f.log.has(&["fmi2SetReal", "i_ref", "finite"]), "{}", f.log.dump());
+    assert_eq!(f.get_real(vr::I_REF).1, 0.005);
+    assert_eq!(f.set_real(vr::I_REF, f64::INFINITY), ERROR);
+    assert_eq!(f.step(1e-4, 1e-4), OK, "{}", f.log.dump());
+    assert!((f.time() - 2e-4).abs() < 1e-15);
+}
+
+#[test]
+fn fmi2_bad_steps_are_refused_without_changing_state() {
+    let f = Fmu2::new("steps");
+    unsafe {
+        assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 1.0, fmi2True, 1.001), OK);
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+    }
+    let before = f.outputs();
+    assert_eq!(f.step(1.0, -1e-3), ERROR);
+    assert!(f.log.has(&["fmi2DoStep", "-0.001"]), "{}", f.log.dump());
+    assert_eq!(f.step(1.0, 0.0), ERROR);
+    assert_eq!(f.step(1.0, f64::NAN), ERROR);
+    assert_eq!(f.step(1.0005, 1e-4), ERROR, "communication point must match the FMU time");
+    assert!(f.log.has(&["currentCommunicationPoint"]));
+    assert_eq!(f.step(1.0, 0.01), ERROR, "past stopTime");
+    assert!(f.log.has(&["stopTime"]), "{}", f.log.dump());
+    assert_eq!(f.outputs(), before);
+    assert_eq!(f.step(1.0, 0.0005), OK);
+    assert_eq!(f.step(1.0005, 0.0005), OK, "the last step may end at stopTime");
+    unsafe {
+        let f2 = Fmu2::new("stop_before_start");
+        assert_eq!(fmi2SetupExperiment(f2.c, 0, 0.0, 1.0, fmi2True, 0.5), ERROR);
+        assert_eq!(fmi2SetupExperiment(f2.c, 0, 0.0, f64::NAN, 0, 0.0), ERROR);
+    }
+}
+
+#[test]
+fn fmi2_parameters_range_and_state_rules() {
+    let f = Fmu2::new("params");
+    assert_eq!(f.set_real(vr::COIL_L, -1.0), ERROR);
+    assert!(f.log.has(&["fmi2SetReal", "coil.L", "-1"]), "{}", f.log.dump());
+    assert_eq!(f.get_real(vr::COIL_L).1, 3.2);
+    assert_eq!(f.set_real(vr::COIL_L, 2.0), OK);
+    unsafe {
+        // Enumerations through fmi2SetInteger, range-checked by the model.
+        assert_eq!(fmi2SetInteger(f.c, &(vr::DRIVER as u32), 1, &7), ERROR);
+        assert!(f.log.has(&["driver"]));
+        assert_eq!(fmi2SetInteger(f.c, &(vr::DRIVER as u32), 1, &1), OK);
+        assert_eq!(fmi2SetReal(f.c, &(vr::DRIVER as u32), 1, &1.0), ERROR);
+        // Outputs are not settable, not even as Boolean.
+        assert_eq!(fmi2SetBoolean(f.c, &(vr::DRIVER_SATURATED as u32), 1, &fmi2True), ERROR);
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(f.set_real(vr::COIL_R, 900.0), OK, "fixed parameters in InitializationMode");
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK, "{}", f.log.dump());
+        assert_eq!(f.set_real(vr::COIL_L, 3.0), ERROR);
+        assert!(f.log.has(&["coil.L", "fixed parameter", "StepComplete"]), "{}", f.log.dump());
+        assert_eq!(f.set_real(vr::I_REF, 0.001), OK, "inputs in StepComplete");
+        assert_eq!(f.get_real(vr::COIL_L).1, 2.0);
+        let mut d = 0;
+        assert_eq!(fmi2GetInteger(f.c, &(vr::DRIVER as u32), 1, &mut d), OK);
+        assert_eq!(d, 1);
+    }
+}
+
+#[test]
+fn fmi2_percent_in_user_text_is_escaped() {
+    let log = Fmu2::try_new("pump%s%n", fmi2CoSimulation, "{wrong%d}").err().unwrap();
+    let lines = log.lines();
+    assert_eq!(lines[0].instance, "pump%s%n", "instanceName is not a format: passed as is");
+    assert!(lines[0].message.contains("pump%%s%%n") && lines[0].message.contains("{wrong%%d}"), "{}", log.dump());
+
+    let f = Fmu2::new("100%");
+    let cat = CString::new("log%s").unwrap();
+    unsafe {
+        assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, 1, &cat.as_ptr()), ERROR);
+    }
+    assert!(f.log.has(&["unknown log category 'log%%s'"]), "{}", f.log.dump());
+    for l in f.log.lines().iter().chain(&lines) {
+        // Every run of '%' in a format string is of even length: no conversion left.
+        for run in l.message.split(|c| c != '%').filter(|r| !r.is_empty()) {
+            assert!(run.len() % 2 == 0, "unescaped % in {:?}", l.message);
+        }
+    }
+}
+
+#[test]
+fn fmi2_debug_logging_categories() {
+    let f = Fmu2::initialized("cats");
+    f.log.clear();
+    let all = CString::new("logAll").unwrap();
+    unsafe {
+        assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, 1, &all.as_ptr()), OK);
+        assert_eq!(f.step(0.0, 1e-4), OK);
+        assert!(f.log.lines().iter().any(|l| l.category == "logAll" && l.message.contains("fmi2DoStep")), "{}", f.log.dump());
+        assert_eq!(fmi2SetDebugLogging(f.c, fmi2False, 0, null()), OK);
+        f.log.clear();
+        assert_eq!(f.step(1e-4, 1e-4), OK);
+        assert!(f.log.lines().is_empty(), "{}", f.log.dump());
+        // Errors are logged even with logging off.
+        assert_eq!(f.step(0.0, 1e-4), ERROR);
+        assert_eq!(f.log.lines().len(), 1);
+        assert_eq!(f.log.lines()[0].category, "logStatusError");
+        // Every declared category is accepted.
+        let names: Vec<CString> = LOG_CATEGORIES.iter().map(|(n, _)| CString::new(*n).unwrap()).collect();
+        let ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
+        assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, ptrs.len(), ptrs.as_ptr()), OK);
+        assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, 2, null()), ERROR);
+        let null_entry = [all.as_ptr(), null()];
+        assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, 2, null_entry.as_ptr()), ERROR);
+    }
+}
+
+#[test]
+fn fmi2_fmu_state_round_trip() {
+    let f = Fmu2::initialized("state");
+    let h = 1e-4;
+    let mut t = 0.0;
+    let run = |f: &Fmu2, t: &mut f64, n: usize, i_ref: f64| {
+        assert_eq!(f.set_real(vr::I_REF, i_ref), OK);
+        for _ in 0..n {
+            assert_eq!(f.step(*t, h), OK, "{}", f.log.dump());
+            *t += h;
+        }
+    };
+    run(&f, &mut t, 3, 0.004);
+    unsafe {
+        let mut s: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2GetFMUstate(f.c, &mut s), OK);
+        assert!(!s.is_null());
+        let t_saved = t;
+        run(&f, &mut t, 4, -0.003);
+        let reference = f.outputs();
+
+        // Restore in memory and replay.
+        assert_eq!(fmi2SetFMUstate(f.c, s), OK);
+        assert_eq!(f.time(), t_saved);
+        t = t_saved;
+        run(&f, &mut t, 4, -0.003);
+        assert_eq!(f.outputs(), reference);
+
+        // Serialize, deserialize into a new state, restore and replay.
+        let mut size = 0usize;
+        assert_eq!(fmi2SerializedFMUstateSize(f.c, s, &mut size), OK);
+        assert!(size > 24);
+        let mut bytes = vec![0 as fmi2Byte; size];
+        assert_eq!(fmi2SerializeFMUstate(f.c, s, bytes.as_mut_ptr(), size - 1), ERROR, "buffer too small");
+        assert_eq!(fmi2SerializeFMUstate(f.c, s, bytes.as_mut_ptr(), size), OK);
+        let mut s2: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2DeSerializeFMUstate(f.c, bytes.as_ptr(), size, &mut s2), OK, "{}", f.log.dump());
+        assert_eq!(fmi2SetFMUstate(f.c, s2), OK);
+        t = t_saved;
+        run(&f, &mut t, 4, -0.003);
+        assert_eq!(f.outputs(), reference);
+
+        // The same bytes restore a second instance.
+        let g = Fmu2::initialized("state_copy");
+        let mut s3: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2DeSerializeFMUstate(g.c, bytes.as_ptr(), size, &mut s3), OK);
+        assert_eq!(fmi2SetFMUstate(g.c, s3), OK);
+        t = t_saved;
+        run(&g, &mut t, 4, -0.003);
+        assert_eq!(g.outputs(), reference);
+        assert_eq!(fmi2FreeFMUstate(g.c, &mut s3), OK);
+
+        // GetFMUstate with a non-NULL *state reuses it.
+        let kept = s;
+        assert_eq!(fmi2GetFMUstate(f.c, &mut s), OK);
+        assert_eq!(s, kept);
+
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
+        assert!(s.is_null());
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK, "freeing NULL is fine");
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut s2), OK);
+        assert_eq!(fmi2FreeFMUstate(f.c, null_mut()), OK);
+
+        // NULL pointers.
+        assert_eq!(fmi2GetFMUstate(f.c, null_mut()), ERROR);
+        assert_eq!(fmi2SetFMUstate(f.c, null_mut()), ERROR);
+        assert_eq!(fmi2SerializedFMUstateSize(f.c, null_mut(), &mut size), ERROR);
+    }
+}
+
+#[test]
+fn fmi2_corrupted_state_bytes_are_refused() {
+    let f = Fmu2::initialized("corrupt");
+    assert_eq!(f.step(0.0, 1e-4), OK);
+    unsafe {
+        let mut s: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2GetFMUstate(f.c, &mut s), OK);
+        let mut size = 0;
+        assert_eq!(fmi2SerializedFMUstateSize(f.c, s, &mut size), OK);
+        let mut bytes = vec![0 as fmi2Byte; size];
+        assert_eq!(fmi2SerializeFMUstate(f.c, s, bytes.as_mut_ptr(), size), OK);
+        bytes[size / 2] ^= 0x55;
+        let mut s2: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2DeSerializeFMUstate(f.c, bytes.as_ptr(), size, &mut s2), ERROR);
+        assert!(s2.is_null());
+        assert!(f.log.has(&["fmi2DeSerializeFMUstate", "cannot deserialize"]), "{}", f.log.dump());
+        assert_eq!(fmi2DeSerializeFMUstate(f.c, bytes.as_ptr(), 10, &mut s2), ERROR, "truncated");
+        assert_eq!(fmi2DeSerializeFMUstate(f.c, null(), size, &mut s2), ERROR);
+        // A pointer that is not an FMU state of ours.
+        let mut junk = [0u64; 64];
+        assert_eq!(fmi2SetFMUstate(f.c, junk.as_mut_ptr().cast()), ERROR);
+        assert!(f.log.has(&["not an EhsvActuator FMU state"]));
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
+        // The instance still works.
+        assert_eq!(f.step(1e-4, 1e-4), OK);
+    }
+}
+
+#[test]
+fn fmi2_two_instances_at_once() {
+    let a = Fmu2::initialized("a");
+    let b = Fmu2::initialized("b");
+    assert_eq!(a.set_real(vr::I_REF, 0.01), OK);
+    assert_eq!(b.set_real(vr::I_REF, -0.01), OK);
+    for k in 0..3 {
+        assert_eq!(a.step(k as f64 * 1e-4, 1e-4), OK);
+    }
+    assert_eq!(b.step(0.0, 1e-3), OK);
+    assert!((a.time() - 3e-4).abs() < 1e-15);
+    assert!((b.time() - 1e-3).abs() < 1e-15);
+    assert_eq!(a.get_real(vr::I_REF).1, 0.01);
+    assert_eq!(b.get_real(vr::I_REF).1, -0.01);
+    assert_eq!(b.step(0.0, 1e-3), ERROR);
+    assert!(b.log.has(&["fmi2DoStep"]));
+    assert!(!a.log.has(&["fmi2DoStep"]), "errors go to the instance's own logger");
+    assert!(b.log.lines().iter().all(|l| l.instance == "b"));
+    // Instances on other threads.
+    let handles: Vec<_> = (0..4)
+        .map(|i| {
+            std::thread::spawn(move || {
+                let f = Fmu2::initialized(&format!("thread{i}"));
+                for k in 0..20 {
+                    assert_eq!(f.step(k as f64 * 1e-4, 1e-4), OK);
+                }
+                f.time()
+            })
+        })
+        .collect();
+    for h in handles {
+        assert!((h.join().unwrap() - 2e-3).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn fmi2_reset_and_unsupported_functions() {
+    let f = Fmu2::initialized("reset");
+    assert_eq!(f.set_real(vr::I_REF, 0.01), OK);
+    assert_eq!(f.step(0.0, 1e-3), OK);
+    unsafe {
+        assert_eq!(fmi2Reset(f.c), OK);
+        assert_eq!(f.time(), 0.0);
+        assert_eq!(f.get_real(vr::I_REF).1, 0.0);
+        assert_eq!(f.step(0.0, 1e-3), ERROR, "back in Instantiated");
+        assert_eq!(f.set_real(vr::COIL_L, 1.0), OK, "fixed parameters settable again");
+        assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, 0.0, 0, 0.0), OK);
+        assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+        assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+        assert_eq!(f.step(0.0, 1e-3), OK);
+
+        let mut d = 0.0;
+        assert_eq!(fmi2GetDirectionalDerivative(f.c, &3, 1, &1, 1, &1.0, &mut d), ERROR);
+        assert!(f.log.has(&["fmi2GetDirectionalDerivative is not supported by EhsvActuator"]), "{}", f.log.dump());
+        assert_eq!(fmi2SetRealInputDerivatives(f.c, &1, 1, &1, &1.0), ERROR);
+        assert_eq!(fmi2GetRealOutputDerivatives(f.c, &3, 1, &1, &mut d), ERROR);
+        assert!(f.log.has(&["fmi2GetRealOutputDerivatives is not supported"]));
+    }
+}
+
+// ---------------------------------------------------------------- FMI 3 harness
+
+struct Fmu3 {
+    i: fmi3Instance,
+    log: Box<Log>,
+}
+
+impl Fmu3 {
+    fn try_new(name: &str, token: &str, event_mode_used: bool) -> Result<Fmu3, Box<Log>> {
+        let log = Box::<Log>::default();
+        let name = CString::new(name).unwrap();
+        let token = CString::new(token).unwrap();
+        let i = unsafe {
+            fmi3InstantiateCoSimulation(
+                name.as_ptr(),
+                token.as_ptr(),
+                null(),
+                false,
+                false,
+                event_mode_used,
+                false,
+                null(),
+                0,
+                log.env(),
+                Some(fmi3_logger),
+                None,
+            )
+        };
+        if i.is_null() {
+            Err(log)
+        } else {
+            Ok(Fmu3 { i, log })
+        }
+    }
+
+    fn new(name: &str) -> Fmu3 {
+        Self::try_new(name, &interface_token(), false).unwrap_or_else(|log| panic!("{}", log.dump()))
+    }
+
+    fn initialized(name: &str, stop: Option<f64>) -> Fmu3 {
+        let f = Self::new(name);
+        unsafe {
+            assert_eq!(fmi3EnterInitializationMode(f.i, false, 0.0, 0.0, stop.is_some(), stop.unwrap_or(0.0)), OK);
+            assert_eq!(fmi3ExitInitializationMode(f.i), OK, "{}", f.log.dump());
+        }
+        f
+    }
+
+    fn get(&self, r: usize) -> (Status, f64) {
+        let mut v = f64::NAN;
+        let s = unsafe { fmi3GetFloat64(self.i, &(r as u32), 1, &mut v, 1) };
+        (s, v)
+    }
+    fn set(&self, r: usize, v: f64) -> Status {
+        unsafe { fmi3SetFloat64(self.i, &(r as u32), 1, &v, 1) }
+    }
+
+    /// DoStep with all out-flags preset to true/NaN to see them written.
+    fn step(&self, t: f64, h: f64) -> (Status, [bool; 3], f64) {
+        let (mut ev, mut term, mut early, mut last) = (true, true, true, f64::NAN);
+        let s = unsafe { fmi3DoStep(self.i, t, h, false, &mut ev, &mut term, &mut early, &mut last) };
+        (s, [ev, term, early], last)
+    }
+    fn outputs(&self) -> Vec<f64> {
+        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE].map(|r| r as u32);
+        let mut v = [0.0; 6];
+        assert_eq!(unsafe { fmi3GetFloat64(self.i, refs.as_ptr(), refs.len(), v.as_mut_ptr(), v.len()) }, OK);
+        v.to_vec()
+    }
+}
+
+impl Drop for Fmu3 {
+    fn drop(&mut self) {
+        unsafe { fmi3FreeInstance(self.i) }
+    }
+}
+
+// ---------------------------------------------------------------- FMI 3 tests
+
+#[test]
+fn fmi3_instantiation() {
+    unsafe {
+        assert_eq!(CStr::from_ptr(fmi3GetVersion()).to_str().unwrap(), "3.0");
+    }
+    let log = Fmu3::try_new("bad", "{nope}", false).err().expect("wrong token refused");
+    assert!(log.has(&["fmi3InstantiateCoSimulation", "instantiationToken", "does not match"]), "{}", log.dump());
+    let log = Fmu3::try_new("events", &interface_token(), true).err().expect("event mode refused");
+    assert!(log.has(&["eventModeUsed"]), "{}", log.dump());
+    let log = Fmu3::try_new("", &interface_token(), false).err().expect("empty name refused");
+    assert!(log.has(&["instanceName"]));
+
+    let log = Log::default();
+    let name = CString::new("me").unwrap();
+    let t = token();
+    unsafe {
+        let i = fmi3InstantiateModelExchange(name.as_ptr(), t.as_ptr(), null(), false, false, log.env(), Some(fmi3_logger));
+        assert!(i.is_null());
+        assert!(log.has(&["fmi3InstantiateModelExchange is not supported by EhsvActuator"]), "{}", log.dump());
+        let i = fmi3InstantiateScheduledExecution(
+            name.as_ptr(),
+            t.as_ptr(),
+            null(),
+            false,
+            false,
+            log.env(),
+            Some(fmi3_logger),
+            None,
+            None,
+            None,
+        );
+        assert!(i.is_null());
+        assert!(log.has(&["fmi3InstantiateScheduledExecution is not supported by EhsvActuator"]));
+        // No logger at all: still NULL, no crash.
+        assert!(fmi3InstantiateModelExchange(name.as_ptr(), t.as_ptr(), null(), false, false, null_mut(), None).is_null());
+    }
+}
+
+#[test]
+fn fmi3_happy_path_and_do_step_out_flags() {
+    let f = Fmu3::new("happy3");
+    unsafe {
+        assert_eq!(f.get(vr::Q_VALVE).0, OK, "outputs readable before initialisation");
+        assert_eq!(fmi3EnterInitializationMode(f.i, true, 1e-6, 0.5, true, 0.6), OK);
+        assert_eq!(f.set(vr::I_REF, 0.01), OK);
+        assert_eq!(fmi3ExitInitializationMode(f.i), OK, "{}", f.log.dump());
+    }
+    let h = 1e-4;
+    for k in 0..5 {
+        let t = 0.5 + k as f64 * h;
+        let (s, flags, last) = f.step(t, h);
+        assert_eq!(s, OK, "{}", f.log.dump());
+        assert_eq!(flags, [false; 3]);
+        assert_eq!(last, f.get(vr::TIME).1);
+        assert!((last - (t + h)).abs() < 1e-12);
+    }
+    assert!(f.outputs().iter().all(|v| v.is_finite()));
+    unsafe {
+        let mut driver = 0i64;
+        assert_eq!(fmi3GetInt64(f.i, &(vr::DRIVER as u32), 1, &mut driver, 1), OK);
+        assert_eq!(driver, 2);
+        let mut sat = true;
+        assert_eq!(fmi3GetBoolean(f.i, &(vr::DRIVER_SATURATED as u32), 1, &mut sat, 1), OK);
+        assert_eq!(fmi3Terminate(f.i), OK);
+        assert_eq!(f.get(vr::X_SPOOL).0, OK);
+        assert_eq!(f.step(0.5 + 5.0 * h, h).0, ERROR);
+        assert!(f.log.has(&["fmi3DoStep", "Terminated"]), "{}", f.log.dump());
+        assert_eq!(fmi3Reset(f.i), OK);
+        assert_eq!(f.get(vr::TIME).1, 0.0);
+    }
+}
+
+#[test]
+fn fmi3_illegal_sequence_and_do_step_errors() {
+    let f = Fmu3::new("seq3");
+    let (s, flags, _) = f.step(0.0, 1e-3);
+    assert_eq!(s, ERROR);
+    assert_eq!(flags, [true; 3], "flags untouched when the call itself is illegal");
+    assert!(f.log.has(&["fmi3DoStep", "Instantiated"]), "{}", f.log.dump());
+    unsafe {
+        assert_eq!(fmi3Terminate(f.i), ERROR);
+        assert_eq!(fmi3ExitInitializationMode(f.i), ERROR);
+        assert_eq!(fmi3EnterInitializationMode(f.i, false, 0.0, 0.0, true, 1e-3), OK);
+        assert_eq!(fmi3ExitInitializationMode(f.i), OK);
+        assert_eq!(fmi3EnterInitializationMode(f.i, false, 0.0, 0.0, false, 0.0), ERROR);
+        assert!(f.log.has(&["fmi3EnterInitializationMode", "StepMode"]));
+
+        // Out-pointers must not be NULL.
+        let (mut a, mut b, mut c, mut t) = (true, true, true, 0.0);
+        assert_eq!(fmi3DoStep(f.i, 0.0, 1e-4, false, null_mut(), &mut b, &mut c, &mut t), ERROR);
+        assert!(f.log.has(&["eventHandlingNeeded"]));
+        assert_eq!(fmi3DoStep(f.i, 0.0, 1e-4, false, &mut a, &mut b, &mut c, null_mut()), ERROR);
+    }
+    // Step errors still report lastSuccessfulTime and clear the flags.
+    let (s, flags, last) = f.step(0.0, -1e-4);
+    assert_eq!((s, flags, last), (ERROR, [false; 3], 0.0));
+    let (s, _, last) = f.step(0.0, 2e-3);
+    assert_eq!((s, last), (ERROR, 0.0));
+    assert!(f.log.has(&["stopTime"]), "{}", f.log.dump());
+    assert_eq!(f.set(vr::I_REF, f64::NAN), ERROR);
+    assert!(f.log.has(&["fmi3SetFloat64", "i_ref"]));
+    let (s, _, last) = f.step(0.0, 1e-3);
+    assert_eq!(s, OK, "{}", f.log.dump());
+    assert!((last - 1e-3).abs() < 1e-15);
+}
+
+#[test]
+fn fmi3_value_counts_types_and_references() {
+    let f = Fmu3::initialized("vals3", None);
+    unsafe {
+        let refs = [vr::I_REF as u32, vr::V_SUPPLY as u32];
+        let mut v = [0.0; 3];
+        assert_eq!(fmi3GetFloat64(f.i, refs.as_ptr(), 2, v.as_mut_ptr(), 3), ERROR);
+        assert!(f.log.has(&["fmi3GetFloat64", "nValues = 3"]), "{}", f.log.dump());
+        assert_eq!(fmi3GetFloat64(f.i, refs.as_ptr(), 2, v.as_mut_ptr(), 1), ERROR);
+        assert_eq!(fmi3SetFloat64(f.i, refs.as_ptr(), 2, v.as_ptr(), 3), ERROR);
+        assert_eq!(fmi3GetFloat64(f.i, refs.as_ptr(), 2, v.as_mut_ptr(), 2), OK);
+        assert_eq!(v[1], 72.0);
+
+        assert_eq!(fmi3GetFloat64(f.i, &500, 1, v.as_mut_ptr(), 1), ERROR);
+        assert!(f.log.has(&["unknown value reference 500"]));
+        assert_eq!(fmi3GetFloat64(f.i, &(vr::DRIVER as u32), 1, v.as_mut_ptr(), 1), ERROR);
+        assert!(f.log.has(&["driver", "Enumeration DriverType", "Int64"]), "{}", f.log.dump());
+        let mut i32v = 0i32;
+        assert_eq!(fmi3GetInt32(f.i, &(vr::DRIVER as u32), 1, &mut i32v, 1), ERROR);
+        assert!(f.log.has(&["not Int32"]));
+        let mut f32v = 0f32;
+        assert_eq!(fmi3GetFloat32(f.i, &(vr::I_REF as u32), 1, &mut f32v, 1), ERROR);
+        assert!(f.log.has(&["i_ref", "Float64", "not Float32"]));
+        let mut b = false;
+        assert_eq!(fmi3GetBoolean(f.i, &(vr::I_REF as u32), 1, &mut b, 1), ERROR);
+        let mut i64v = 0i64;
+        assert_eq!(fmi3SetInt64(f.i, &(vr::DRIVER as u32), 1, &1, 1), ERROR, "fixed parameter in StepMode");
+        assert!(f.log.has(&["driver", "fixed parameter", "StepMode"]), "{}", f.log.dump());
+        assert_eq!(fmi3GetInt64(f.i, &(vr::CONTROL_MODE as u32), 1, &mut i64v, 1), OK);
+
+        // Empty requests of every type are fine; types without variables refuse any reference.
+        assert_eq!(fmi3GetUInt16(f.i, null(), 0, null_mut(), 0), OK);
+        assert_eq!(fmi3SetUInt64(f.i, null(), 0, null(), 0), OK);
+        let mut s: fmi3String = null();
+        assert_eq!(fmi3GetString(f.i, null(), 0, null_mut(), 0), OK);
+        assert_eq!(fmi3GetString(f.i, &1, 1, &mut s, 1), ERROR);
+        assert_eq!(fmi3SetString(f.i, &1, 1, &s, 1), ERROR);
+        let mut size = 0usize;
+        let mut bin: fmi3Binary = null();
+        assert_eq!(fmi3GetBinary(f.i, &1, 1, &mut size, &mut bin, 1), ERROR);
+        assert_eq!(fmi3SetBinary(f.i, null(), 0, null(), null(), 0), OK);
+        let mut clock = false;
+        assert_eq!(fmi3GetClock(f.i, &1, 1, &mut clock), ERROR);
+        assert_eq!(fmi3SetClock(f.i, null(), 0, null()), OK);
+
+        // Booleans: outputs are not settable; a NULL value array is refused.
+        assert_eq!(fmi3SetBoolean(f.i, &(vr::DRIVER_SATURATED as u32), 1, &true, 1), ERROR);
+        assert_eq!(fmi3GetBoolean(f.i, &(vr::DRIVER_SATURATED as u32), 1, null_mut(), 1), ERROR);
+        // Cross-version use of an instance is refused.
+        let mut r = 0.0;
+        assert_eq!(fmi2GetReal(f.i, &1, 1, &mut r), ERROR);
+        assert!(f.log.has(&["other FMI version"]));
+        fmi2FreeInstance(f.i); // refused, the instance stays alive
+        assert_eq!(f.get(vr::I_REF).0, OK);
+    }
+}
+
+#[test]
+fn fmi3_fmu_state_round_trip_and_corruption() {
+    let f = Fmu3::initialized("state3", None);
+    let h = 1e-4;
+    assert_eq!(f.set(vr::I_REF, 0.006), OK);
+    for k in 0..3 {
+        assert_eq!(f.step(k as f64 * h, h).0, OK);
+    }
+    unsafe {
+        let mut s: fmi3FMUState = null_mut();
+        assert_eq!(fmi3GetFMUState(f.i, &mut s), OK);
+        let mut size = 0;
+        assert_eq!(fmi3SerializedFMUStateSize(f.i, s, &mut size), OK);
+        let mut bytes = vec![0u8; size];
+        assert_eq!(fmi3SerializeFMUState(f.i, s, bytes.as_mut_ptr(), size), OK);
+        assert_eq!(fmi3FreeFMUState(f.i, &mut s), OK);
+        assert!(s.is_null());
+
+        assert_eq!(f.set(vr::I_REF, -0.002), OK);
+        for k in 3..6 {
+            assert_eq!(f.step(k as f64 * h, h).0, OK);
+        }
+        let reference = f.outputs();
+
+        let mut s2: fmi3FMUState = null_mut();
+        assert_eq!(fmi3DeserializeFMUState(f.i, bytes.as_ptr(), size, &mut s2), OK, "{}", f.log.dump());
+        assert_eq!(fmi3SetFMUState(f.i, s2), OK);
+        assert!((f.get(vr::TIME).1 - 3.0 * h).abs() < 1e-15);
+        assert_eq!(f.get(vr::I_REF).1, 0.006);
+        assert_eq!(f.set(vr::I_REF, -0.002), OK);
+        for k in 3..6 {
+            assert_eq!(f.step(k as f64 * h, h).0, OK);
+        }
+        assert_eq!(f.outputs(), reference);
+        assert_eq!(fmi3FreeFMUState(f.i, &mut s2), OK);
+
+        let mut bad = bytes.clone();
+        let n = bad.len();
+        bad[n - 1] ^= 1;
+        assert_eq!(fmi3DeserializeFMUState(f.i, bad.as_ptr(), n, &mut s2), ERROR);
+        assert!(f.log.has(&["fmi3DeserializeFMUState", "cannot deserialize"]), "{}", f.log.dump());
+        assert_eq!(fmi3DeserializeFMUState(f.i, b"garbage".as_ptr(), 7, &mut s2), ERROR);
+        assert_eq!(fmi3DeserializeFMUState(f.i, bytes.as_ptr(), size, null_mut()), ERROR);
+        assert!(s2.is_null());
+        assert_eq!(fmi3SetFMUState(f.i, null_mut()), ERROR);
+    }
+}
+
+#[test]
+fn fmi3_unsupported_functions_log_and_fail() {
+    let f = Fmu3::initialized("unsup3", None);
+    unsafe {
+        let mut n = 0usize;
+        let mut x = 0.0;
+        let mut b = false;
+        let cases: Vec<(&str, Status)> = vec![
+            ("fmi3EnterEventMode", fmi3EnterEventMode(f.i)),
+            ("fmi3EnterStepMode", fmi3EnterStepMode(f.i)),
+            ("fmi3SetTime", fmi3SetTime(f.i, 1.0)),
+            ("fmi3GetNumberOfContinuousStates", fmi3GetNumberOfContinuousStates(f.i, &mut n)),
+            ("fmi3GetNumberOfEventIndicators", fmi3GetNumberOfEventIndicators(f.i, &mut n)),
+            ("fmi3GetNumberOfVariableDependencies", fmi3GetNumberOfVariableDependencies(f.i, 3, &mut n)),
+            ("fmi3GetDirectionalDerivative", fmi3GetDirectionalDerivative(f.i, &3, 1, &1, 1, &1.0, 1, &mut x, 1)),
+            ("fmi3GetAdjointDerivative", fmi3GetAdjointDerivative(f.i, &3, 1, &1, 1, &1.0, 1, &mut x, 1)),
+            ("fmi3EnterConfigurationMode", fmi3EnterConfigurationMode(f.i)),
+            ("fmi3ExitConfigurationMode", fmi3ExitConfigurationMode(f.i)),
+            ("fmi3GetIntervalDecimal", fmi3GetIntervalDecimal(f.i, &1, 1, &mut x, &mut 0)),
+            ("fmi3SetShiftFraction", fmi3SetShiftFraction(f.i, &1, 1, &1, &1)),
+            ("fmi3EvaluateDiscreteStates", fmi3EvaluateDiscreteStates(f.i)),
+            (
+                "fmi3UpdateDiscreteStates",
+                fmi3UpdateDiscreteStates(f.i, &mut b, &mut b, &mut b, &mut b, &mut b, &mut x),
+            ),
+            ("fmi3CompletedIntegratorStep", fmi3CompletedIntegratorStep(f.i, false, &mut b, &mut b)),
+            ("fmi3GetContinuousStates", fmi3GetContinuousStates(f.i, &mut x, 1)),
+            ("fmi3GetOutputDerivatives", fmi3GetOutputDerivatives(f.i, &3, 1, &1, &mut x, 1)),
+            ("fmi3ActivateModelPartition", fmi3ActivateModelPartition(f.i, 0, 0.0)),
+        ];
+        for (name, status) in cases {
+            assert_eq!(status, ERROR, "{name}");
+            assert!(f.log.has(&[&format!("{name} is not supported by EhsvActuator")]), "{name}:\n{}", f.log.dump());
+        }
+        // NULL instance: Error without logging.
+        assert_eq!(fmi3EnterEventMode(null_mut()), ERROR);
+        assert_eq!(fmi3GetFloat64(null_mut(), null(), 0, null_mut(), 0), ERROR);
+        fmi3FreeInstance(null_mut());
+    }
+    // Still usable.
+    assert_eq!(f.step(0.0, 1e-4).0, OK);
+}
+
+#[test]
+fn fmi3_debug_logging_and_two_instances() {
+    let a = Fmu3::initialized("a3", None);
+    let b = Fmu3::initialized("b3", None);
+    let cat = CString::new("logAll").unwrap();
+    let bad = CString::new("logNothing").unwrap();
+    unsafe {
+        assert_eq!(fmi3SetDebugLogging(a.i, true, 1, &cat.as_ptr()), OK);
+        assert_eq!(fmi3SetDebugLogging(b.i, true, 1, &bad.as_ptr()), ERROR);
+    }
+    assert!(b.log.has(&["unknown log category 'logNothing'"]));
+    a.log.clear();
+    b.log.clear();
+    assert_eq!(a.step(0.0, 1e-4).0, OK);
+    assert_eq!(b.step(0.0, 1e-4).0, OK);
+    assert!(a.log.has(&["fmi3DoStep"]), "{}", a.log.dump());
+    assert!(b.log.lines().is_empty(), "{}", b.log.dump());
+    assert_eq!(a.set(vr::I_REF, 0.003), OK);
+    assert_eq!(b.get(vr::I_REF).1, 0.0);
+}
