@@ -30,7 +30,7 @@ def test_outputs_do_not_depend_on_the_step_size(version, run, driver, h):
     fine = run(version, driver, I_STEP, h=STEPS[0], t_stop=T_STOP, outputs=OUTPUTS)
     coarse = run(version, driver, I_STEP, h=h, t_stop=T_STOP, outputs=OUTPUTS)
     idx = _shared(fine, coarse, STEPS[0], h)
-    assert np.array_equal(fine["time"][idx], coarse["time"])
+    assert np.allclose(fine["time"][idx], coarse["time"], rtol=1e-12, atol=0)
     for name, tol in TOL.items():
         diff = np.abs(fine[name][idx] - coarse[name])
         k = int(np.argmax(diff))
@@ -45,7 +45,7 @@ def test_outputs_do_not_depend_on_the_step_size(version, run, driver, h):
 def test_linear_drivers_match_the_exact_solution(version, run, driver, h):
     got = run(version, driver, I_STEP, h=h, t_stop=T_STOP, outputs=OUTPUTS)
     ref = ehsv.linear_step_response_dense(driver, I_STEP, h, T_STOP)
-    assert np.array_equal(got["time"], ref["time"])
+    assert np.allclose(got["time"], ref["time"], rtol=1e-12, atol=0)
     # sample 0 is recorded before the step is applied: compare from the first step on
     for name, tol in TOL.items():
         diff = np.abs(got[name][1:] - ref[name][1:])
@@ -56,7 +56,8 @@ def test_linear_drivers_match_the_exact_solution(version, run, driver, h):
 
 def test_ideal_current_follows_the_command_exactly(version, run):
     got = run(version, "ideal_current", I_STEP, h=1e-4, t_stop=T_STOP, outputs=OUTPUTS)
-    assert np.all(got["i_coil"][1:] == I_STEP)
+    # i = i_ref; allowed: rounding of the FMU's arithmetic (1e-12 of the command)
+    assert np.max(np.abs(got["i_coil"][1:] - I_STEP)) <= 1e-12 * I_STEP
 
 
 def test_voltage_driver_applies_R_times_command(version, run):
