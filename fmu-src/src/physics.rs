@@ -243,7 +243,9 @@ fn dynamics(p: &Params, mode: Mode) -> Mat {
     a
 }
 
-/// Exit guards of a mode: the mode ends where any of them becomes positive.
+/// Exit guards of a mode: the mode ends where any of them turns from <= 0 to > 0 (edge
+/// triggered: a guard already positive when the mode starts is a condition that has been
+/// passed, e.g. the + rail while slewing down from above it after a supply drop).
 fn mode_guards(p: &Params, mode: Mode, a: &Mat) -> Vec<Vector> {
     let u = unit(U);
     let vmax = unit(VMAX);
@@ -260,8 +262,9 @@ fn mode_guards(p: &Params, mode: Mode, a: &Mat) -> Vec<Vector> {
         Mode::HighIntegrating => vec![vmax - u_lin, e],
         Mode::LowFrozen => vec![u_lin + vmax, e],
         Mode::LowIntegrating => vec![u_lin + vmax, -e],
-        Mode::SlewUp => vec![u - vmax, u - u_lin],
-        Mode::SlewDown => vec![-u - vmax, u_lin - u],
+        // Slewing ends where u meets clamp(u_lin, -vmax, vmax).
+        Mode::SlewUp => vec![u - vmax, u - u_lin, u + vmax],
+        Mode::SlewDown => vec![-u - vmax, u_lin - u, vmax - u],
     }
 }
 
@@ -514,12 +517,15 @@ fn count_switch(events: &mut StepEvents, from: Mode, to: Mode) {
     }
 }
 
-/// Could a guard have become positive between `z0` and `z1` (`h` apart)? True when one
-/// is positive at the end, or when the tangents at both ends meet above zero (a bump).
+/// Could a guard have turned positive between `z0` and `z1` (`h` apart)? True when it
+/// goes from < 0 to > 0 (one at 0 when a window starts is leaving it, never entering), or when the tangents at both ends meet above zero (a bump).
 fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64) -> bool {
     (0..sys.n_guards).any(|k| {
         let g0 = sys.guards[k].dot(z0);
         let g1 = sys.guards[k].dot(z1);
+        if g0 >= 0.0 {
+            return false;
+        }
         if g1 > 0.0 {
             return true;
         }
@@ -551,6 +557,9 @@ fn locate_event(sys: &ModeSystem, z0: &Vector, h: f64) -> Option<(f64, Vector)> 
             let mut coef = [0.0; TAYLOR_TERMS];
             for (c, t) in coef.iter_mut().zip(terms.iter()) {
                 *c = sys.guards[g].dot(t);
+            }
+            if coef[0] >= 0.0 {
+                continue; // passed before this window (edge triggered)
             }
             if let Some(tau) = first_positive(&coef, w, first.unwrap_or(w)) {
                 first = Some(tau);
