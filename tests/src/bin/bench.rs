@@ -237,6 +237,9 @@ fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
     let mut quick = false;
     let mut lib = default_library();
+    if let Ok(canonical) = lib.canonicalize() {
+        lib = canonical;
+    }
     let mut repeat: Option<usize> = None;
     while let Some(a) = args.next() {
         match a.as_str() {
