@@ -821,3 +821,36 @@ impl Instance {
         unsafe { self.store_state(state, model) }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Mutex;
+
+    extern "C" fn collect(env: *mut c_void, _status: c_int, _category: *const c_char, message: *const c_char) {
+        // SAFETY: env is the Mutex below; message is a C string from the FMU.
+        let log = unsafe { &*(env as *const Mutex<Vec<String>>) };
+        log.lock().unwrap().push(unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned());
+    }
+
+    #[test]
+    fn a_panic_becomes_an_error_and_the_instance_survives() {
+        let log = Mutex::new(Vec::<String>::new());
+        let env = &log as *const _ as *mut c_void;
+        let token = CString::new(crate::variables::interface_token()).unwrap();
+        // SAFETY: valid C strings and callback.
+        let inst = unsafe {
+            instantiate(Version::Fmi3, "fmi3InstantiateCoSimulation", c"p".as_ptr(), token.as_ptr(), Logger::Fmi3(collect, env), false, None)
+        };
+        assert!(!inst.is_null());
+        // SAFETY: `inst` is live.
+        let status = unsafe { with_instance(inst, Version::Fmi3, "fmi3Boom", ANY_STATE, |_| panic!("boom {}", 42)) };
+        assert_eq!(status, Status::Error);
+        assert!(log.lock().unwrap().iter().any(|m| m == "fmi3Boom: internal error: boom 42"), "{log:?}");
+        // SAFETY: still live.
+        let status = unsafe { with_instance(inst, Version::Fmi3, "fmi3Reset", ANY_STATE, |i| i.reset()) };
+        assert_eq!(status, Status::OK);
+        // SAFETY: freed once.
+        unsafe { free_instance(inst, Version::Fmi3, "fmi3FreeInstance") };
+    }
+}

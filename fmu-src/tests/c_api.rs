@@ -11,6 +11,33 @@ use ehsv_actuator::fmi3::*;
 use ehsv_actuator::fmi_common::{Fmi2Logger, Status, LOG_CATEGORIES};
 use ehsv_actuator::variables::{interface_token, vr};
 
+// ---------------------------------------------------------------- allocation counter
+
+/// Counts heap allocations per thread (tests run in parallel), to check that the
+/// real-time path (set inputs, step, get outputs) does not allocate.
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+}
+
+unsafe impl std::alloc::GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        unsafe { std::alloc::System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        unsafe { std::alloc::System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(|n| n.get())
+}
+
 // ---------------------------------------------------------------- logging harness
 
 #[derive(Clone, Debug)]
@@ -949,4 +976,35 @@ fn fmi3_debug_logging_and_two_instances() {
     assert!(b.log.lines().is_empty(), "{}", b.log.dump());
     assert_eq!(a.set(vr::I_REF, 0.003), OK);
     assert_eq!(b.get(vr::I_REF).1, 0.0);
+}
+
+#[test]
+fn step_loop_does_not_allocate() {
+    let f2 = Fmu2::initialized("rt2");
+    let f3 = Fmu3::initialized("rt3", Some(1.0));
+    let inputs = [vr::I_REF as u32, vr::V_SUPPLY as u32];
+    let outputs = [vr::I_COIL as u32, vr::U_DRIVER as u32, vr::X_SPOOL as u32, vr::Q_VALVE as u32];
+    let mut out = [0.0; 4];
+    let (mut sat2, mut sat3) = (0, false);
+    let (mut ev, mut term, mut early, mut last) = (false, false, false, 0.0);
+    let h = 1e-4;
+    let probe = allocations();
+    drop(std::hint::black_box(vec![1u8; 16]));
+    assert!(allocations() > probe, "the counter counts");
+    let before = allocations();
+    unsafe {
+        for k in 0..200 {
+            let t = k as f64 * h;
+            let u = [if k % 50 < 25 { 0.02 } else { -0.02 }, 72.0];
+            assert_eq!(fmi2SetReal(f2.c, inputs.as_ptr(), 2, u.as_ptr()), OK);
+            assert_eq!(fmi2DoStep(f2.c, t, h, fmi2True), OK);
+            assert_eq!(fmi2GetReal(f2.c, outputs.as_ptr(), 4, out.as_mut_ptr()), OK);
+            assert_eq!(fmi2GetBoolean(f2.c, &(vr::DRIVER_SATURATED as u32), 1, &mut sat2), OK);
+            assert_eq!(fmi3SetFloat64(f3.i, inputs.as_ptr(), 2, u.as_ptr(), 2), OK);
+            assert_eq!(fmi3DoStep(f3.i, t, h, true, &mut ev, &mut term, &mut early, &mut last), OK);
+            assert_eq!(fmi3GetFloat64(f3.i, outputs.as_ptr(), 4, out.as_mut_ptr(), 4), OK);
+            assert_eq!(fmi3GetBoolean(f3.i, &(vr::DRIVER_SATURATED as u32), 1, &mut sat3, 1), OK);
+        }
+    }
+    assert_eq!(allocations() - before, 0, "the step loop allocated");
 }
