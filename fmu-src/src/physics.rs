@@ -82,7 +82,7 @@ const MODES: [Mode; 9] = [
 
 impl Mode {
     fn index(self) -> usize {
-        MODES.iter().position(|&m| m == self).unwrap_or(0)
+        self as usize
     }
     fn at_rail(self) -> bool {
         matches!(self, Mode::HighFrozen | Mode::HighIntegrating | Mode::LowFrozen | Mode::LowIntegrating)
@@ -281,17 +281,19 @@ impl PropagatorCache {
         PropagatorCache { keys: [(usize::MAX, 0); CACHE_SLOTS], values: [Mat::zeros(); CACHE_SLOTS], next: 0 }
     }
 
-    fn get(&mut self, mode: usize, sys: &ModeSystem, h: f64) -> Mat {
+    fn get(&mut self, mode: usize, sys: &ModeSystem, h: f64) -> &Mat {
         let key = (mode, h.to_bits());
-        if let Some(slot) = self.keys.iter().position(|&k| k == key) {
-            return self.values[slot];
-        }
-        let e = (sys.a * h).exp();
-        let slot = self.next;
-        self.keys[slot] = key;
-        self.values[slot] = e;
-        self.next = (slot + 1) % CACHE_SLOTS;
-        e
+        let slot = match self.keys.iter().position(|&k| k == key) {
+            Some(slot) => slot,
+            None => {
+                let slot = self.next;
+                self.keys[slot] = key;
+                self.values[slot] = (sys.a * h).exp();
+                self.next = (slot + 1) % CACHE_SLOTS;
+                slot
+            }
+        };
+        &self.values[slot]
     }
 }
 
@@ -371,10 +373,10 @@ impl Physics {
     }
 
     /// Applies the inputs held over the coming step: the algebraic drivers follow them at once.
-    fn apply_inputs(&self, z: &mut Vector, i_ref: f64, v_supply: f64) {
+    fn apply_inputs(&self, z: &mut Vector, i_ref: f64, rail: f64) {
         let p = &self.params;
         z[IREF] = i_ref;
-        z[VMAX] = p.rail(v_supply);
+        z[VMAX] = rail;
         match p.driver {
             DriverKind::IdealCurrent => {
                 z[I] = i_ref;
@@ -444,32 +446,44 @@ impl Physics {
     /// On error the state is left as it was.
     pub fn advance(&mut self, values: &[f64; N_VARIABLES], step: f64) -> Result<StepEvents, String> {
         let mut z = self.z;
-        self.apply_inputs(&mut z, values[vr::I_REF], values[vr::V_SUPPLY]);
-        let mut mode = self.consistent_mode(&z);
-        self.project(&mut z, mode);
+        let mut mode = self.mode;
         let mut events = StepEvents::default();
-        count_switch(&mut events, self.mode, mode);
+        // A state that ended the last step is consistent with its mode; only new inputs
+        // (or a restored state) need the mode chosen again.
+        let i_ref = values[vr::I_REF];
+        let rail = self.params.rail(values[vr::V_SUPPLY]);
+        if z[IREF] != i_ref || z[VMAX] != rail {
+            self.apply_inputs(&mut z, i_ref, rail);
+            mode = self.consistent_mode(&z);
+            self.project(&mut z, mode);
+            count_switch(&mut events, self.mode, mode);
+        }
         let mut done = 0.0;
         let mut switches = 0;
+        // Guards that fired without changing the mode: passed, ignored for this segment.
+        let mut passed: u8 = 0;
         'modes: while done < step {
-            let sys = self.systems[mode.index()];
             let span = step - done;
-            let n = sys.substeps(span, THETA_COARSE);
+            let n = self.systems[mode.index()].substeps(span, THETA_COARSE);
             let h = span / n as f64;
-            let propagator = self.cache.get(mode.index(), &sys, h);
+            let sys = &self.systems[mode.index()];
+            let propagator = self.cache.get(mode.index(), sys, h);
             for k in 0..n {
                 let next = propagator * z;
-                if may_cross(&sys, &z, &next, h) {
-                    if let Some((tau, at)) = locate_event(&sys, &z, h) {
+                if may_cross(sys, &z, &next, h, passed) {
+                    if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
                         z = at;
                         done += k as f64 * h + tau;
                         let new_mode = self.consistent_mode(&z);
                         self.project(&mut z, new_mode);
                         count_switch(&mut events, mode, new_mode);
+                        passed = if new_mode == mode { passed | 1 << guard } else { 0 };
                         mode = new_mode;
                         switches += 1;
                         if switches > MAX_EVENTS_PER_STEP {
-                            return Err(format!("driver switched mode more than {MAX_EVENTS_PER_STEP} times in one step (chattering); step refused"));
+                            return Err(format!(
+                                "driver switched mode more than {MAX_EVENTS_PER_STEP} times in one step (chattering); step refused"
+                            ));
                         }
                         continue 'modes;
                     }
@@ -517,13 +531,14 @@ fn count_switch(events: &mut StepEvents, from: Mode, to: Mode) {
     }
 }
 
-/// Could a guard have turned positive between `z0` and `z1` (`h` apart)? True when it
-/// goes from < 0 to > 0 (one at 0 when a window starts is leaving it, never entering), or when the tangents at both ends meet above zero (a bump).
-fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64) -> bool {
-    (0..sys.n_guards).any(|k| {
+/// Could a guard (not in `passed`) have turned positive between `z0` and `z1` (`h`
+/// apart)? True when it goes from <= 0 to > 0, or when the tangents at both ends meet
+/// above zero (a bump).
+fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, passed: u8) -> bool {
+    (0..sys.n_guards).filter(|k| passed & 1 << k == 0).any(|k| {
         let g0 = sys.guards[k].dot(z0);
         let g1 = sys.guards[k].dot(z1);
-        if g0 >= 0.0 {
+        if g0 > 0.0 {
             return false;
         }
         if g1 > 0.0 {
@@ -539,9 +554,10 @@ fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64) -> bool {
     })
 }
 
-/// First instant in (0, h] where a guard turns positive, with the state there.
-/// Searched in windows short enough for a Taylor polynomial of the exact solution.
-fn locate_event(sys: &ModeSystem, z0: &Vector, h: f64) -> Option<(f64, Vector)> {
+/// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
+/// guard and the state there. Searched in windows short enough for a Taylor polynomial
+/// of the exact solution.
+fn locate_event(sys: &ModeSystem, z0: &Vector, h: f64, passed: u8) -> Option<(f64, usize, Vector)> {
     let windows = sys.substeps(h, THETA_FINE);
     let w = h / windows as f64;
     let mut start = *z0;
@@ -552,21 +568,21 @@ fn locate_event(sys: &ModeSystem, z0: &Vector, h: f64) -> Option<(f64, Vector)> 
         for k in 1..TAYLOR_TERMS {
             terms[k] = sys.a * terms[k - 1] / k as f64;
         }
-        let mut first: Option<f64> = None;
-        for g in 0..sys.n_guards {
+        let mut first: Option<(f64, usize)> = None;
+        for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
             let mut coef = [0.0; TAYLOR_TERMS];
             for (c, t) in coef.iter_mut().zip(terms.iter()) {
                 *c = sys.guards[g].dot(t);
             }
-            if coef[0] >= 0.0 {
+            if coef[0] > 0.0 {
                 continue; // passed before this window (edge triggered)
             }
-            if let Some(tau) = first_positive(&coef, w, first.unwrap_or(w)) {
-                first = Some(tau);
+            if let Some(tau) = first_positive(&coef, w, first.map_or(w, |f| f.0)) {
+                first = Some((tau, g));
             }
         }
-        if let Some(tau) = first {
-            return Some((j as f64 * w + tau, horner_vec(&terms, tau)));
+        if let Some((tau, g)) = first {
+            return Some((j as f64 * w + tau, g, horner_vec(&terms, tau)));
         }
         start = horner_vec(&terms, w);
     }
