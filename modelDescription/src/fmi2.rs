@@ -25,6 +25,8 @@ pub(crate) struct ModelDescription {
     unit_definitions: UnitDefinitions,
     #[serde(rename = "TypeDefinitions")]
     type_definitions: TypeDefinitions,
+    #[serde(rename = "LogCategories")]
+    log_categories: LogCategories,
     #[serde(rename = "DefaultExperiment")]
     default_experiment: DefaultExperiment,
     #[serde(rename = "ModelVariables")]
@@ -240,6 +242,7 @@ pub(crate) fn model_description() -> ModelDescription {
                 })
                 .collect(),
         },
+        log_categories: log_categories(),
         default_experiment: DEFAULT_EXPERIMENT,
         model_variables: ModelVariables {
             scalar_variables: table().map(|(vr, v)| scalar_variable(vr, v)).collect(),

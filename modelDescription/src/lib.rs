@@ -159,6 +159,31 @@ fn items(items: &'static [(i64, &'static str, &'static str)]) -> Vec<Item> {
         .collect()
 }
 
+/// `<LogCategories>`: same element in FMI 2 and FMI 3, rendered from the one list the C
+/// API accepts ([`ehsv_actuator::fmi_common::LOG_CATEGORIES`]).
+#[derive(Serialize)]
+struct LogCategories {
+    #[serde(rename = "Category")]
+    categories: Vec<Category>,
+}
+
+#[derive(Serialize)]
+struct Category {
+    #[serde(rename = "@name")]
+    name: &'static str,
+    #[serde(rename = "@description")]
+    description: &'static str,
+}
+
+fn log_categories() -> LogCategories {
+    LogCategories {
+        categories: ehsv_actuator::fmi_common::LOG_CATEGORIES
+            .iter()
+            .map(|&(name, description)| Category { name, description })
+            .collect(),
+    }
+}
+
 #[derive(Serialize)]
 struct DefaultExperiment {
     #[serde(rename = "@startTime")]

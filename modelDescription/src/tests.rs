@@ -308,3 +308,21 @@ fn markdown_has_a_row_per_variable() {
     assert!(md.contains("| 2 (opamp_pi) |"));
     assert!(enumerations_markdown().contains("- 2 `opamp_pi`"));
 }
+
+#[test]
+fn log_categories_are_the_c_api_list_in_schema_order() {
+    for xml in [fmi2_xml(), fmi3_xml()] {
+        let root = parse(&xml);
+        let rendered: Vec<(&str, &str)> = root
+            .child("LogCategories")
+            .all("Category")
+            .map(|c| (c.attr("name"), c.attr("description")))
+            .collect();
+        let expected: Vec<(&str, &str)> = ehsv_actuator::fmi_common::LOG_CATEGORIES.to_vec();
+        assert_eq!(rendered, expected);
+        // Schema order: ... TypeDefinitions, LogCategories, DefaultExperiment ...
+        let names: Vec<&str> = root.children.iter().map(|c| c.name.as_str()).collect();
+        let at = |n: &str| names.iter().position(|&x| x == n).unwrap();
+        assert!(at("TypeDefinitions") < at("LogCategories") && at("LogCategories") < at("DefaultExperiment"), "{names:?}");
+    }
+}
