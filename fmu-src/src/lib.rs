@@ -7,6 +7,7 @@
 //! * [`model`]: a model instance as the FMI layer sees it (values by reference, step, state bytes).
 //! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code).
 
+pub mod hydraulics;
 pub mod model;
 pub mod physics;
 pub mod units;
