@@ -813,13 +813,30 @@ impl Instance {
     pub(crate) unsafe fn deserialize(&self, bytes: *const u8, size: usize, state: *mut *mut c_void) -> Result<Status, Status> {
         // SAFETY: forwarded array contract.
         let data = unsafe { self.slice("serializedState", bytes, size)? };
-        let model = match Model::from_bytes(data) {
+        let model = match Model::from_bytes(data).and_then(|m| check_restored(&m).map(|()| m)) {
             Ok(m) => m,
             Err(e) => return self.error(&format!("cannot deserialize the FMU state: {e}")),
         };
         // SAFETY: forwarded contract.
         unsafe { self.store_state(state, model) }
     }
+}
+
+/// What the checksum cannot vouch for in a well-formed frame built elsewhere: the time
+/// is finite, parameters and inputs pass the checks of the setters, outputs are finite.
+fn check_restored(model: &Model) -> Result<(), String> {
+    if !model.time().is_finite() {
+        return Err(format!("the state's time {} is not finite", model.time()));
+    }
+    for (index, var) in VARIABLES.iter().enumerate() {
+        let value = model.get(index).unwrap_or(f64::NAN);
+        match var.causality {
+            Causality::Parameter | Causality::Input => var.check(value)?,
+            Causality::Output if !value.is_finite() => return Err(format!("the state's {} = {value} is not finite", var.name)),
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -2,14 +2,12 @@
 //! functions the cdylib exports). Tests the mechanics of the API — call sequence,
 //! argument checks, logging, FMU states — not the physics values.
 
-use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::ffi::{c_char, c_int, CStr, CString};
 use std::ptr::{null, null_mut};
-use std::sync::Mutex;
 
-use ehsv_actuator::fmi2::*;
-use ehsv_actuator::fmi3::*;
-use ehsv_actuator::fmi_common::{Fmi2Logger, Status, LOG_CATEGORIES};
-use ehsv_actuator::variables::{interface_token, vr};
+mod common;
+use common::*;
+use ehsv_actuator::fmi_common::LOG_CATEGORIES;
 
 // ---------------------------------------------------------------- allocation counter
 
@@ -36,160 +34,6 @@ static GLOBAL: Counting = Counting;
 
 fn allocations() -> usize {
     ALLOCATIONS.with(|n| n.get())
-}
-
-// ---------------------------------------------------------------- logging harness
-
-#[derive(Clone, Debug)]
-struct Line {
-    instance: String,
-    status: c_int,
-    category: String,
-    message: String,
-}
-
-#[derive(Default)]
-struct Log(Mutex<Vec<Line>>);
-
-impl Log {
-    fn lines(&self) -> Vec<Line> {
-        self.0.lock().unwrap().clone()
-    }
-    fn clear(&self) {
-        self.0.lock().unwrap().clear();
-    }
-    /// Is there a line containing every needle?
-    fn has(&self, needles: &[&str]) -> bool {
-        self.lines().iter().any(|l| needles.iter().all(|n| l.message.contains(n)))
-    }
-    fn dump(&self) -> String {
-        self.lines().iter().map(|l| format!("[{} {} {}] {}\n", l.instance, l.status, l.category, l.message)).collect()
-    }
-    fn env(&self) -> *mut c_void {
-        self as *const Log as *mut c_void
-    }
-}
-
-unsafe fn text(p: *const c_char) -> String {
-    if p.is_null() {
-        "<NULL>".into()
-    } else {
-        unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
-    }
-}
-
-/// The FMI 2 logger with its fixed arguments only; see [`fmi2_logger`].
-extern "C" fn fmi2_logger_fixed(
-    env: *mut c_void,
-    instance: *const c_char,
-    status: c_int,
-    category: *const c_char,
-    message: *const c_char,
-) {
-    // SAFETY: env is the &Log given at instantiation; strings are C strings from the FMU.
-    let log = unsafe { &*(env as *const Log) };
-    let line = unsafe { Line { instance: text(instance), status, category: text(category), message: text(message) } };
-    log.0.lock().unwrap().push(line);
-}
-
-/// TEST ONLY: stable Rust cannot define a C-variadic function, so the FMI 2 logger is a
-/// fixed-argument function cast to the variadic pointer type. The FMU passes no variadic
-/// arguments, and on the supported ABIs (x86_64 SysV, aarch64) the fixed arguments of a
-/// variadic call are passed exactly like those of a non-variadic one — this is what C
-/// importers effectively rely on as well. The message is the printf *format* (with '%'
-/// escaped as "%%"), which the tests check verbatim.
-fn fmi2_logger() -> Fmi2Logger {
-    type Fixed = extern "C" fn(*mut c_void, *const c_char, c_int, *const c_char, *const c_char);
-    // SAFETY: see above; both are plain function pointers of the same size.
-    unsafe { std::mem::transmute::<Fixed, Fmi2Logger>(fmi2_logger_fixed) }
-}
-
-extern "C" fn fmi3_logger(env: *mut c_void, status: c_int, category: *const c_char, message: *const c_char) {
-    // SAFETY: as in fmi2_logger_fixed.
-    let log = unsafe { &*(env as *const Log) };
-    let line = unsafe { Line { instance: String::new(), status, category: text(category), message: text(message) } };
-    log.0.lock().unwrap().push(line);
-}
-
-const OK: Status = Status::OK;
-const ERROR: Status = Status::Error;
-
-fn token() -> CString {
-    CString::new(interface_token()).unwrap()
-}
-
-// ---------------------------------------------------------------- FMI 2 harness
-
-struct Fmu2 {
-    c: fmi2Component,
-    log: Box<Log>,
-}
-
-impl Fmu2 {
-    /// The instance, or the log of the refusal.
-    fn try_new(name: &str, fmu_type: fmi2Type, guid: &str) -> Result<Fmu2, Box<Log>> {
-        // The Box keeps the Log at a fixed address: it is the componentEnvironment.
-        let log = Box::<Log>::default();
-        let functions = fmi2CallbackFunctions {
-            logger: Some(fmi2_logger()),
-            allocateMemory: None,
-            freeMemory: None,
-            stepFinished: None,
-            componentEnvironment: log.env(),
-        };
-        let name = CString::new(name).unwrap();
-        let guid = CString::new(guid).unwrap();
-        let c = unsafe {
-            fmi2Instantiate(name.as_ptr(), fmu_type, guid.as_ptr(), null(), &functions, fmi2False, fmi2False)
-        };
-        if c.is_null() {
-            Err(log)
-        } else {
-            Ok(Fmu2 { c, log })
-        }
-    }
-
-    fn new(name: &str) -> Fmu2 {
-        Self::try_new(name, fmi2CoSimulation, &interface_token()).unwrap_or_else(|log| panic!("{}", log.dump()))
-    }
-
-    /// Instantiated, set up from 0 (no stop time), initialised.
-    fn initialized(name: &str) -> Fmu2 {
-        let f = Self::new(name);
-        unsafe {
-            assert_eq!(fmi2SetupExperiment(f.c, fmi2False, 0.0, 0.0, fmi2False, 0.0), OK);
-            assert_eq!(fmi2EnterInitializationMode(f.c), OK);
-            assert_eq!(fmi2ExitInitializationMode(f.c), OK, "{}", f.log.dump());
-        }
-        f
-    }
-
-    fn get_real(&self, r: usize) -> (Status, f64) {
-        let mut v = f64::NAN;
-        let s = unsafe { fmi2GetReal(self.c, &(r as u32), 1, &mut v) };
-        (s, v)
-    }
-    fn set_real(&self, r: usize, v: f64) -> Status {
-        unsafe { fmi2SetReal(self.c, &(r as u32), 1, &v) }
-    }
-    fn step(&self, t: f64, h: f64) -> Status {
-        unsafe { fmi2DoStep(self.c, t, h, fmi2True) }
-    }
-    fn time(&self) -> f64 {
-        self.get_real(vr::TIME).1
-    }
-    fn outputs(&self) -> Vec<f64> {
-        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE].map(|r| r as u32);
-        let mut v = [0.0; 6];
-        assert_eq!(unsafe { fmi2GetReal(self.c, refs.as_ptr(), refs.len(), v.as_mut_ptr()) }, OK);
-        v.to_vec()
-    }
-}
-
-impl Drop for Fmu2 {
-    fn drop(&mut self) {
-        unsafe { fmi2FreeInstance(self.c) }
-    }
 }
 
 // ---------------------------------------------------------------- FMI 2 tests
@@ -621,83 +465,6 @@ fn fmi2_reset_and_unsupported_functions() {
         assert_eq!(fmi2SetRealInputDerivatives(f.c, &1, 1, &1, &1.0), ERROR);
         assert_eq!(fmi2GetRealOutputDerivatives(f.c, &3, 1, &1, &mut d), ERROR);
         assert!(f.log.has(&["fmi2GetRealOutputDerivatives is not supported"]));
-    }
-}
-
-// ---------------------------------------------------------------- FMI 3 harness
-
-struct Fmu3 {
-    i: fmi3Instance,
-    log: Box<Log>,
-}
-
-impl Fmu3 {
-    fn try_new(name: &str, token: &str, event_mode_used: bool) -> Result<Fmu3, Box<Log>> {
-        let log = Box::<Log>::default();
-        let name = CString::new(name).unwrap();
-        let token = CString::new(token).unwrap();
-        let i = unsafe {
-            fmi3InstantiateCoSimulation(
-                name.as_ptr(),
-                token.as_ptr(),
-                null(),
-                false,
-                false,
-                event_mode_used,
-                false,
-                null(),
-                0,
-                log.env(),
-                Some(fmi3_logger),
-                None,
-            )
-        };
-        if i.is_null() {
-            Err(log)
-        } else {
-            Ok(Fmu3 { i, log })
-        }
-    }
-
-    fn new(name: &str) -> Fmu3 {
-        Self::try_new(name, &interface_token(), false).unwrap_or_else(|log| panic!("{}", log.dump()))
-    }
-
-    fn initialized(name: &str, stop: Option<f64>) -> Fmu3 {
-        let f = Self::new(name);
-        unsafe {
-            assert_eq!(fmi3EnterInitializationMode(f.i, false, 0.0, 0.0, stop.is_some(), stop.unwrap_or(0.0)), OK);
-            assert_eq!(fmi3ExitInitializationMode(f.i), OK, "{}", f.log.dump());
-        }
-        f
-    }
-
-    fn get(&self, r: usize) -> (Status, f64) {
-        let mut v = f64::NAN;
-        let s = unsafe { fmi3GetFloat64(self.i, &(r as u32), 1, &mut v, 1) };
-        (s, v)
-    }
-    fn set(&self, r: usize, v: f64) -> Status {
-        unsafe { fmi3SetFloat64(self.i, &(r as u32), 1, &v, 1) }
-    }
-
-    /// DoStep with all out-flags preset to true/NaN to see them written.
-    fn step(&self, t: f64, h: f64) -> (Status, [bool; 3], f64) {
-        let (mut ev, mut term, mut early, mut last) = (true, true, true, f64::NAN);
-        let s = unsafe { fmi3DoStep(self.i, t, h, false, &mut ev, &mut term, &mut early, &mut last) };
-        (s, [ev, term, early], last)
-    }
-    fn outputs(&self) -> Vec<f64> {
-        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE].map(|r| r as u32);
-        let mut v = [0.0; 6];
-        assert_eq!(unsafe { fmi3GetFloat64(self.i, refs.as_ptr(), refs.len(), v.as_mut_ptr(), v.len()) }, OK);
-        v.to_vec()
-    }
-}
-
-impl Drop for Fmu3 {
-    fn drop(&mut self) {
-        unsafe { fmi3FreeInstance(self.i) }
     }
 }
 

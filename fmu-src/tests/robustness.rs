@@ -1,0 +1,481 @@
+//! FMI conformance and robustness through the C API, each test written once over
+//! [`common::Api`] and run for FMI 2 and FMI 3: FMU-state bytes (bit-identical
+//! continuation, every corrupted or truncated byte string refused), Reset and Terminate
+//! in every state, log categories, bad input (Error + a log line naming the cause, the
+//! instance usable afterwards), bounded doStep time, parallel instances.
+
+use std::ptr::{null, null_mut};
+use std::time::{Duration, Instant};
+
+mod common;
+use common::*;
+use ehsv_actuator::variables::{ENUMERATIONS, VARIABLES};
+
+/// Runs both versions of a generic test.
+macro_rules! both {
+    ($($name:ident),* $(,)?) => {
+        mod fmi2 { use super::*; $(#[test] fn $name() { super::$name::<Fmu2>() })* }
+        mod fmi3 { use super::*; $(#[test] fn $name() { super::$name::<Fmu3>() })* }
+    };
+}
+
+both!(
+    state_continues_bit_identically_in_a_new_instance,
+    every_corrupted_truncated_or_foreign_state_is_refused,
+    reset_returns_to_start_values_from_every_state,
+    terminate_only_in_step_mode_free_in_every_state,
+    log_categories_are_honoured,
+    bad_input_in_step_mode_is_an_error_naming_the_cause,
+    bad_parameters_are_refused_before_initialisation,
+    huge_steps_return_in_bounded_time,
+);
+
+const H: f64 = 1e-4;
+
+/// i_ref as a +-10 mA square wave (period 50 steps): the op-amp driver hits its rails.
+fn i_ref_at(k: usize) -> f64 {
+    if (k / 25) % 2 == 0 { 0.01 } else { -0.01 }
+}
+
+/// Steps `n` times from step index `k0`, returning every variable (as bits) after each step.
+fn drive<F: Api>(f: &F, k0: usize, n: usize) -> Vec<Vec<u64>> {
+    (k0..k0 + n)
+        .map(|k| {
+            assert_eq!(f.set(vr::I_REF, i_ref_at(k)), OK);
+            assert_eq!(f.step(k as f64 * H, H), OK, "{}", f.log().dump());
+            f.snapshot()
+        })
+        .collect()
+}
+
+/// The last log line: status Error, naming every needle.
+fn assert_error_logged<F: Api>(f: &F, what: &str, needles: &[&str]) {
+    let lines = f.log().lines();
+    let last = lines.last().unwrap_or_else(|| panic!("{what}: nothing logged"));
+    assert_eq!(last.status, Status::Error as i32, "{what}: {last:?}");
+    assert_eq!(last.category, "logStatusError", "{what}");
+    for n in needles {
+        assert!(last.message.contains(n), "{what}: {:?} does not name {n:?}", last.message);
+    }
+}
+
+// ---------------------------------------------------------------- FMU state
+
+fn state_continues_bit_identically_in_a_new_instance<F: Api>() {
+    let f = F::initialized("origin");
+    drive(&f, 0, 37);
+    let bytes = f.save();
+    let reference = drive(&f, 37, 80);
+
+    // The same instance, after it moved on.
+    assert_eq!(f.restore(&bytes), OK, "{}", f.log().dump());
+    assert_eq!(drive(&f, 37, 80), reference);
+    // A new instance that was never stepped.
+    let g = F::initialized("copy");
+    assert_eq!(g.restore(&bytes), OK, "{}", g.log().dump());
+    assert_eq!(drive(&g, 37, 80), reference);
+    // The byte form does not depend on the instance that wrote it.
+    assert_eq!(g.restore(&bytes), OK);
+    assert_eq!(g.save(), bytes);
+}
+
+#[test]
+fn state_bytes_are_the_same_in_both_versions() {
+    let (a, b) = (Fmu2::initialized("a2"), Fmu3::initialized("b3", None));
+    assert_eq!(drive(&a, 0, 60), drive(&b, 0, 60));
+    let bytes = a.save();
+    assert_eq!(bytes, b.save());
+    let c = Fmu3::initialized("c3", None);
+    assert_eq!(c.restore(&bytes), OK, "FMI 2 bytes restore an FMI 3 instance");
+    assert_eq!(drive(&a, 60, 40), drive(&c, 60, 40));
+}
+
+/// FNV-1a 64, as the state frame uses: lets the test build frames with a valid checksum.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))
+}
+
+/// magic | body length | body | checksum: a well-formed frame around `body`.
+fn frame(magic: &[u8; 8], body: &[u8]) -> Vec<u8> {
+    [&magic[..], &(body.len() as u64).to_le_bytes(), body, &fnv1a(body).to_le_bytes()].concat()
+}
+
+fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
+    let f = F::initialized("corrupt");
+    drive(&f, 0, 30);
+    let bytes = f.save();
+    let reference = drive(&f, 30, 20);
+    let (magic, body) = (&bytes[..8], &bytes[16..bytes.len() - 8]);
+    assert_eq!(&bytes[..], &frame(magic.try_into().unwrap(), body)[..], "the test knows the frame");
+
+    let refused = |bad: &[u8], what: String| {
+        let before = f.log().lines().len();
+        assert_eq!(f.restore(bad), ERROR, "{what} was accepted");
+        let lines = f.log().lines();
+        assert_eq!(lines.len(), before + 1, "{what}: one log line");
+        assert!(lines[before].message.contains("cannot deserialize the FMU state"), "{what}: {:?}", lines[before]);
+    };
+    for i in 0..bytes.len() {
+        for flip in [0xff, 0x01, 0x80] {
+            let mut bad = bytes.clone();
+            bad[i] ^= flip;
+            refused(&bad, format!("byte {i} ^ {flip:#x}"));
+        }
+    }
+    for n in 0..bytes.len() {
+        refused(&bytes[..n], format!("truncated to {n} bytes"));
+    }
+    refused(&[&bytes[..], &[0]].concat(), "one trailing byte".into());
+    // Foreign: other format versions, random bytes, and well-formed frames whose contents are wrong.
+    refused(&frame(b"EHSVST02", body), "format version 02".into());
+    refused(&frame(b"EHSVST00", body), "format version 00".into());
+    let mut seed = 0x9e3779b97f4a7c15u64;
+    for len in [1, 7, 24, 25, bytes.len() - 1, bytes.len(), bytes.len() + 8, 4096] {
+        let random: Vec<u8> = (0..len)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                seed as u8
+            })
+            .collect();
+        refused(&random, format!("{len} random bytes"));
+        refused(&[magic, &random].concat(), format!("magic + {len} random bytes"));
+    }
+    refused(&frame(magic.try_into().unwrap(), &body[..body.len() - 1]), "a frame around a short body".into());
+    // Well-formed frames holding values the FMU would never accept from a setter.
+    let value_at = |r: usize| 4 + 1 + 8 + 8 * r; // n_variables u32 | initialized u8 | time f64 | values
+    for (r, v) in [(vr::I_REF, f64::NAN), (vr::V_SUPPLY, f64::INFINITY), (vr::COIL_L, -1.0), (vr::COIL_R, f64::NAN)] {
+        let mut b = body.to_vec();
+        b[value_at(r)..value_at(r) + 8].copy_from_slice(&v.to_le_bytes());
+        refused(&frame(magic.try_into().unwrap(), &b), format!("{} = {v} in a valid frame", VARIABLES[r].name));
+        assert!(f.log().has(&[VARIABLES[r].name]), "the refusal names {}", VARIABLES[r].name);
+    }
+    let mut b = body.to_vec();
+    b[5..13].copy_from_slice(&f64::NAN.to_le_bytes());
+    refused(&frame(magic.try_into().unwrap(), &b), "time = NaN in a valid frame".into());
+
+    // None of that touched the instance or the good bytes.
+    assert_eq!(f.restore(&bytes), OK);
+    assert_eq!(drive(&f, 30, 20), reference);
+}
+
+// ---------------------------------------------------------------- life cycle
+
+/// Puts a fresh instance into each state the FMU has; returns it with the state's name.
+fn in_every_state<F: Api>() -> Vec<(&'static str, F)> {
+    let instantiated = F::create("instantiated");
+    assert_eq!(instantiated.set(vr::COIL_L, 2.0), OK);
+    assert_eq!(instantiated.set(vr::I_REF, 0.004), OK);
+    let init_mode = F::create("init_mode");
+    assert_eq!(init_mode.set(vr::I_REF, 0.004), OK);
+    assert_eq!(init_mode.enter_init(None), OK);
+    let stepping = F::initialized("step_mode");
+    drive(&stepping, 0, 40);
+    let after_error = F::initialized("after_error");
+    drive(&after_error, 0, 5);
+    assert_eq!(after_error.step(0.0, -1.0), ERROR);
+    let terminated = F::initialized("terminated");
+    drive(&terminated, 0, 5);
+    assert_eq!(terminated.terminate(), OK);
+    vec![
+        ("Instantiated", instantiated),
+        ("InitializationMode", init_mode),
+        ("StepMode", stepping),
+        ("StepMode after an Error", after_error),
+        ("Terminated", terminated),
+    ]
+}
+
+fn reset_returns_to_start_values_from_every_state<F: Api>() {
+    let fresh = F::create("fresh").snapshot();
+    let fresh_run = {
+        let f = F::initialized("fresh_run");
+        drive(&f, 0, 30)
+    };
+    for (state, f) in in_every_state::<F>() {
+        assert_eq!(f.reset(), OK, "{state}: {}", f.log().dump());
+        assert_eq!(f.snapshot(), fresh, "{state}: Reset gives the start values");
+        assert_eq!(f.init(None), OK, "{state}: {}", f.log().dump());
+        assert_eq!(drive(&f, 0, 30), fresh_run, "{state}: after Reset the run is a fresh one");
+    }
+}
+
+fn terminate_only_in_step_mode_free_in_every_state<F: Api>() {
+    for (state, f) in in_every_state::<F>() {
+        let status = f.terminate();
+        if state.starts_with("StepMode") {
+            assert_eq!(status, OK, "{state}: {}", f.log().dump());
+        } else {
+            assert_eq!(status, ERROR, "{state}");
+            assert_error_logged(&f, state, &["Terminate", "not allowed in state"]);
+        }
+        // Getters still work; FreeInstance (Drop) follows in every state.
+        assert_eq!(f.get(vr::I_COIL).0, OK, "{state}");
+    }
+}
+
+// ---------------------------------------------------------------- logging
+
+fn log_categories_are_honoured<F: Api>() {
+    // A 5 mA step drives the op-amp onto its +72 V rail and off it again.
+    let run = |categories: &[&str]| {
+        let f = F::initialized("logs");
+        assert_eq!(f.set_logging(true, categories), OK);
+        f.log().clear();
+        assert_eq!(f.set(vr::I_REF, 0.005), OK);
+        for k in 0..10 {
+            assert_eq!(f.step(k as f64 * H, H), OK);
+        }
+        assert_eq!(f.step(0.0, H), ERROR); // an Error: always logged
+        f
+    };
+    let events = run(&["logEvents"]);
+    assert!(events.logged("logEvents", &["reached a supply rail 1 time"]), "{}", events.log().dump());
+    assert!(events.logged("logEvents", &["left it 1 time"]), "{}", events.log().dump());
+    assert!(events.logged("logStatusError", &["currentCommunicationPoint"]));
+    assert!(events.log().lines().iter().all(|l| l.category != "logAll"), "{}", events.log().dump());
+
+    let errors_only = run(&["logStatusError"]);
+    let cats: Vec<String> = errors_only.log().lines().iter().map(|l| l.category.clone()).collect();
+    assert_eq!(cats, ["logStatusError"], "{}", errors_only.log().dump());
+    let nothing = run(&[]); // all categories on
+    assert!(nothing.logged("logAll", &["DoStep"]) && nothing.logged("logEvents", &["supply rail"]));
+
+    let all = run(&["logAll"]);
+    assert!(all.logged("logAll", &["DoStep"]), "{}", all.log().dump());
+    assert!(all.log().lines().iter().any(|l| l.category == "logEvents"), "logAll includes events");
+
+    // Switching a category off again; an unknown one is an Error that changes nothing.
+    let f = F::initialized("off");
+    assert_eq!(f.set_logging(true, &["logEvents"]), OK);
+    assert_eq!(f.set_logging(false, &["logEvents"]), OK);
+    assert_eq!(f.set_logging(true, &["logEvents", "logEverything"]), ERROR);
+    assert_error_logged(&f, "unknown category", &["unknown log category 'logEverything'", "logEvents, logStatusWarning"]);
+    f.log().clear();
+    assert_eq!(f.set(vr::I_REF, 0.005), OK);
+    assert_eq!(f.step(0.0, 1e-3), OK);
+    assert!(f.log().lines().is_empty(), "{}", f.log().dump());
+}
+
+#[test]
+fn fmi2_status_family_and_warning_category() {
+    let f = Fmu2::initialized("status");
+    unsafe {
+        let mut st = OK;
+        assert_eq!(fmi2GetStatus(f.c, fmi2DoStepStatus, &mut st), Status::Discard);
+        assert!(f.log.lines().is_empty(), "Discard is logged only under logStatusWarning");
+        assert_eq!(f.set_logging(true, &["logStatusWarning"]), OK);
+        assert_eq!(fmi2GetStatus(f.c, fmi2DoStepStatus, &mut st), Status::Discard);
+        assert!(f.logged("logStatusWarning", &["fmi2GetStatus", "synchronous"]), "{}", f.log.dump());
+        assert_eq!(f.log.lines()[0].status, Status::Discard as i32);
+        for t in [1e-4, 3e-4] {
+            let mut last = -1.0;
+            assert_eq!(f.step(f.time(), t - f.time()), OK);
+            assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut last), OK);
+            assert_eq!(last, t);
+        }
+        assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, std::ptr::null_mut()), ERROR);
+        assert_error_logged(&f, "NULL value", &["fmi2GetRealStatus", "value is NULL"]);
+        assert_eq!(fmi2Terminate(f.c), OK);
+        let (mut last, mut term) = (-1.0, fmi2True);
+        assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut last), OK, "after Terminate too");
+        assert_eq!(last, 3e-4);
+        assert_eq!(fmi2GetBooleanStatus(f.c, fmi2Terminated, &mut term), OK);
+        assert_eq!(term, fmi2False);
+        assert_eq!(fmi2GetBooleanStatus(f.c, fmi2LastSuccessfulTime, &mut term), Status::Discard);
+    }
+}
+
+// ---------------------------------------------------------------- bad input
+
+type BadCall<F> = (&'static str, fn(&F) -> Status, &'static [&'static str]);
+
+fn bad_input_in_step_mode_is_an_error_naming_the_cause<F: Api>() {
+    let t = H; // the FMU time when the bad call comes
+    let cases: &[BadCall<F>] = &[
+        ("NaN input", |f| f.set(vr::I_REF, f64::NAN), &["i_ref", "NaN", "finite"]),
+        ("+Inf input", |f| f.set(vr::V_SUPPLY, f64::INFINITY), &["V_supply", "inf", "finite"]),
+        ("-Inf input", |f| f.set(vr::I_REF, f64::NEG_INFINITY), &["i_ref", "-inf"]),
+        ("input out of range", |f| f.set(vr::V_SUPPLY, -5.0), &["V_supply", "-5", "range"]),
+        ("tunable-free: fixed parameter in step mode", |f| f.set(vr::COIL_L, 3.0), &["coil.L", "fixed parameter"]),
+        ("zero step", |f| f.step(H, 0.0), &["step size 0 "]),
+        ("negative step", |f| f.step(H, -1e-4), &["step size -0.0001"]),
+        ("NaN step", |f| f.step(H, f64::NAN), &["step size NaN"]),
+        ("infinite step", |f| f.step(H, f64::INFINITY), &["step size inf"]),
+        ("communication point behind", |f| f.step(0.0, H), &["currentCommunicationPoint 0 ", "0.0001"]),
+        ("communication point ahead", |f| f.step(0.25, H), &["currentCommunicationPoint 0.25"]),
+        ("NaN communication point", |f| f.step(f64::NAN, H), &["currentCommunicationPoint NaN"]),
+        ("step past stopTime", |f| f.step(H, 1.0), &["stopTime 0.5"]),
+        ("unknown value reference (get)", |f| f.get(100_000).0, &["unknown value reference 100000"]),
+        ("unknown value reference (set)", |f| f.set(4_000_000_000usize, 1.0), &["unknown value reference 4000000000"]),
+        ("output set", |f| f.set(vr::Q_VALVE, 1.0), &["Q_valve", "output"]),
+        ("enumeration out of range", |f| f.set_enum(vr::CONTROL_MODE, 42), &["control_mode"]),
+        ("unknown log category", |f| f.set_logging(true, &["logDebug"]), &["logDebug"]),
+    ];
+    for &(what, call, needles) in cases {
+        let f = F::create(what);
+        assert_eq!(f.init(Some(0.5)), OK);
+        assert_eq!(f.set(vr::I_REF, 0.003), OK);
+        assert_eq!(f.step(0.0, H), OK);
+        let before = f.snapshot();
+        assert_eq!(call(&f), ERROR, "{what} accepted");
+        assert_error_logged(&f, what, needles);
+        assert_eq!(f.snapshot(), before, "{what} changed the instance");
+        assert_eq!(f.step(t, H), OK, "{what}: instance unusable afterwards: {}", f.log().dump());
+        assert_eq!(f.get(vr::TIME).1, t + H);
+    }
+}
+
+fn bad_parameters_are_refused_before_initialisation<F: Api>() {
+    let params = [vr::COIL_L, vr::COIL_R, vr::VALVE_ZETA, vr::VALVE_F_N, vr::DRIVER_KP, vr::DRIVER_SLEW_RATE];
+    for r in params {
+        let var = &VARIABLES[r];
+        let mut bad = vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
+        bad.extend(var.min.map(|m| if var.min_exclusive { m } else { m - 1.0 }));
+        bad.extend(var.max.map(|m| m * 2.0 + 1.0));
+        for v in bad {
+            let f = F::create("params");
+            let start = f.snapshot();
+            assert_eq!(f.set(r, v), ERROR, "{} = {v} accepted", var.name);
+            assert_error_logged(&f, var.name, &[var.name, &format!("{v}")]);
+            assert_eq!(f.snapshot(), start, "{} = {v} changed the instance", var.name);
+            assert_eq!(f.init(None), OK, "{}", f.log().dump());
+            assert_eq!(f.step(0.0, H), OK);
+        }
+    }
+    let f = F::create("enum");
+    assert_eq!(f.set_enum(vr::DRIVER, -1), ERROR);
+    assert_error_logged(&f, "driver", &["driver", "-1"]);
+    assert_eq!(f.set_enum(vr::DRIVER, i64::MAX), ERROR);
+    assert_eq!(f.init(None), OK);
+}
+
+#[test]
+fn fmi2_null_pointers_name_the_argument() {
+    let f = Fmu2::initialized("null2");
+    let (r, mut v, mut i, mut size) = (vr::I_REF as u32, 0.0, 0, 0usize);
+    unsafe {
+        let cases: Vec<(&str, Status, &[&str])> = vec![
+            ("GetReal vr", fmi2GetReal(f.c, null(), 1, &mut v), &["fmi2GetReal", "valueReferences is NULL"]),
+            ("GetReal values", fmi2GetReal(f.c, &r, 1, null_mut()), &["values is NULL"]),
+            ("SetReal values", fmi2SetReal(f.c, &r, 1, null()), &["fmi2SetReal", "values is NULL"]),
+            ("GetInteger values", fmi2GetInteger(f.c, &r, 1, null_mut()), &["fmi2GetInteger"]),
+            ("SetBoolean vr", fmi2SetBoolean(f.c, null(), 2, &i), &["fmi2SetBoolean", "valueReferences is NULL"]),
+            ("GetFMUstate", fmi2GetFMUstate(f.c, null_mut()), &["FMUState is NULL"]),
+            ("SetFMUstate", fmi2SetFMUstate(f.c, null_mut()), &["FMU state is NULL"]),
+            ("SerializedFMUstateSize size", fmi2SerializedFMUstateSize(f.c, null_mut(), &mut size), &["FMU state"]),
+            ("DeSerialize bytes", fmi2DeSerializeFMUstate(f.c, null(), 8, &mut null_mut::<std::ffi::c_void>()), &["serializedState is NULL"]),
+            ("SetDebugLogging", fmi2SetDebugLogging(f.c, fmi2True, 1, null()), &["categories is NULL"]),
+            ("GetIntegerStatus", fmi2GetIntegerStatus(f.c, 0, null_mut()), &["value is NULL"]),
+        ];
+        for (what, status, needles) in cases {
+            assert_eq!(status, ERROR, "{what}");
+            assert!(f.log.has(needles), "{what}: {}", f.log.dump());
+        }
+        let mut s: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2GetFMUstate(f.c, &mut s), OK);
+        assert_eq!(fmi2SerializedFMUstateSize(f.c, s, null_mut()), ERROR);
+        assert!(f.log.has(&["size is NULL"]));
+        assert_eq!(fmi2SerializeFMUstate(f.c, s, null_mut(), 4096), ERROR);
+        assert!(f.log.has(&["serializedState is NULL"]));
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
+        let _ = i;
+        i = 0;
+        assert_eq!(fmi2GetInteger(f.c, &(vr::DRIVER as u32), 1, &mut i), OK);
+    }
+    assert_eq!(f.step(0.0, H), OK);
+}
+
+#[test]
+fn fmi3_null_pointers_and_counts_name_the_argument() {
+    let f = Fmu3::initialized("null3", None);
+    let refs = [vr::I_REF as u32, vr::V_SUPPLY as u32];
+    let (mut v, mut b, mut t) = ([0.0; 2], false, 0.0);
+    unsafe {
+        let cases: Vec<(&str, Status, &[&str])> = vec![
+            ("nValues short", fmi3GetFloat64(f.i, refs.as_ptr(), 2, v.as_mut_ptr(), 1), &["fmi3GetFloat64", "nValues = 1"]),
+            ("nValues long", fmi3SetFloat64(f.i, refs.as_ptr(), 1, v.as_ptr(), 2), &["fmi3SetFloat64", "nValues = 2"]),
+            ("nValues bool", fmi3GetBoolean(f.i, refs.as_ptr(), 1, &mut b, 0), &["fmi3GetBoolean", "nValues = 0"]),
+            ("values NULL", fmi3GetFloat64(f.i, refs.as_ptr(), 2, null_mut(), 2), &["values is NULL"]),
+            ("vr NULL", fmi3SetInt64(f.i, null(), 1, &1, 1), &["fmi3SetInt64", "valueReferences is NULL"]),
+            ("eventHandlingNeeded", fmi3DoStep(f.i, 0.0, H, false, null_mut(), &mut b, &mut b, &mut t), &["eventHandlingNeeded"]),
+            ("terminateSimulation", fmi3DoStep(f.i, 0.0, H, false, &mut b, null_mut(), &mut b, &mut t), &["terminateSimulation"]),
+            ("earlyReturn", fmi3DoStep(f.i, 0.0, H, false, &mut b, &mut b, null_mut(), &mut t), &["earlyReturn"]),
+            ("lastSuccessfulTime", fmi3DoStep(f.i, 0.0, H, false, &mut b, &mut b, &mut b, null_mut()), &["lastSuccessfulTime"]),
+            ("GetFMUState", fmi3GetFMUState(f.i, null_mut()), &["FMUState is NULL"]),
+            ("DeserializeFMUState", fmi3DeserializeFMUState(f.i, null(), 3, &mut null_mut::<std::ffi::c_void>()), &["serializedState is NULL"]),
+            ("SetDebugLogging", fmi3SetDebugLogging(f.i, true, 2, null()), &["categories is NULL"]),
+        ];
+        for (what, status, needles) in cases {
+            assert_eq!(status, ERROR, "{what}");
+            assert!(f.log.has(needles), "{what}: {}", f.log.dump());
+        }
+    }
+    assert_eq!(f.step(0.0, H).0, OK, "{}", f.log.dump());
+}
+
+// ---------------------------------------------------------------- bounded time
+
+fn huge_steps_return_in_bounded_time<F: Api>() {
+    let drivers = ENUMERATIONS.iter().find(|e| e.name == "DriverType").expect("DriverType").items;
+    for &(value, name, _) in drivers {
+        for h in [1e6, 1e3, 1.0] {
+            let f = F::create(name);
+            if f.set_enum(vr::DRIVER, value) != OK {
+                println!("{} driver {name}: refused by this build ({})", F::VERSION, f.log().dump().trim());
+                break;
+            }
+            assert_eq!(f.set(vr::I_REF, 0.005), OK);
+            assert_eq!(f.init(None), OK);
+            assert_eq!(f.set(vr::I_REF, -0.01), OK);
+            let start = Instant::now();
+            let status = f.step(0.0, h);
+            let took = start.elapsed();
+            println!("{} driver {name}: one doStep of {h:e} s returned {status:?} in {took:?}", F::VERSION);
+            assert!(took < Duration::from_secs(2), "{name}: a {h} s step took {took:?}");
+            // Whatever the answer, the instance goes on.
+            let t = f.get(vr::TIME).1;
+            assert!(status == OK || (status == ERROR && t == 0.0), "{name}: {status:?} at t = {t}");
+            assert_eq!(f.step(t, 1e-3), OK, "{}", f.log().dump());
+            assert!(f.snapshot().iter().all(|&b| f64::from_bits(b).is_finite()));
+        }
+    }
+}
+
+// ---------------------------------------------------------------- threads
+
+fn scenario<F: Api>(seed: usize) -> Vec<Vec<u64>> {
+    let f = F::initialized(&format!("thread{seed}"));
+    assert_eq!(f.set(vr::V_SUPPLY, 40.0 + seed as f64), OK);
+    (0..800)
+        .map(|k| {
+            assert_eq!(f.set(vr::I_REF, i_ref_at(k + 7 * seed) * (1.0 + seed as f64 / 8.0)), OK);
+            assert_eq!(f.step(k as f64 * 2.5e-5, 2.5e-5), OK);
+            f.snapshot()
+        })
+        .collect()
+}
+
+#[test]
+fn eight_parallel_instances_match_sequential_runs_bit_for_bit() {
+    let run = |k: usize| (scenario::<Fmu2>(k), scenario::<Fmu3>(k));
+    let sequential: Vec<_> = (0..8).map(run).collect();
+    let barrier = std::sync::Arc::new(std::sync::Barrier::new(8));
+    let parallel: Vec<_> = (0..8)
+        .map(|k| {
+            let barrier = barrier.clone();
+            std::thread::spawn(move || {
+                barrier.wait();
+                run(k)
+            })
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .map(|h| h.join().expect("no panic in a thread"))
+        .collect();
+    for (k, (s, p)) in sequential.iter().zip(&parallel).enumerate() {
+        assert!(s == p, "instance {k} differs between the sequential and the parallel run");
+    }
+    assert!(sequential[0] != sequential[1], "the eight scenarios differ");
+}
