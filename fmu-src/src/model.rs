@@ -75,7 +75,7 @@ impl Model {
     /// Before initialisation ends the outputs are those of the initial equilibrium for
     /// the current parameters and inputs, so importers can read initial unknowns.
     fn refresh_before_start(&mut self) {
-        if let Ok(p) = Physics::start(&self.values) {
+        if let Ok(p) = Physics::start(&self.values, self.time) {
             self.physics = p;
             self.physics.write_outputs(&mut self.values);
         }
@@ -84,7 +84,7 @@ impl Model {
     /// Ends initialisation: checks the parameters together, builds the integrator, puts the
     /// model in equilibrium for the current inputs.
     pub fn initialize(&mut self) -> Result<(), String> {
-        self.physics = Physics::start(&self.values)?;
+        self.physics = Physics::start(&self.values, self.time)?;
         self.physics.write_outputs(&mut self.values);
         self.initialized = true;
         Ok(())
@@ -109,7 +109,7 @@ impl Model {
                 self.time
             ));
         }
-        let events = self.physics.advance(&self.values, step)?;
+        let events = self.physics.advance(&self.values, self.time, step)?;
         self.physics.write_outputs(&mut self.values);
         self.time = current_time + step;
         Ok(events)

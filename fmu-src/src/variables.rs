@@ -227,9 +227,17 @@ pub mod vr {
     pub const VALVE_A_S: usize = 24;
     pub const VALVE_ZETA: usize = 25;
     pub const VALVE_F_N: usize = 26;
+    pub const INDUSTRIAL_KP: usize = 27;
+    pub const INDUSTRIAL_KI: usize = 28;
+    pub const INDUSTRIAL_SLEW_RATE: usize = 29;
+    pub const HBRIDGE_F_PWM: usize = 30;
+    pub const HBRIDGE_F_SAMPLE: usize = 31;
+    pub const HBRIDGE_KP: usize = 32;
+    pub const HBRIDGE_KI: usize = 33;
+    pub const HBRIDGE_FEEDFORWARD: usize = 34;
 }
 
-pub const N_VARIABLES: usize = 27;
+pub const N_VARIABLES: usize = 35;
 
 pub static VARIABLES: [Variable; N_VARIABLES] = [
     Variable {
@@ -278,9 +286,9 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         display_unit: None,
         start: 2.0,
         min: Some(0.0),
-        max: Some(2.0),
+        max: Some(4.0),
         min_exclusive: false,
-        description: "Coil driver: 0 ideal_current, 1 voltage, 2 opamp_pi (3 industrial and 4 hbridge_pid are not built yet)",
+        description: "Coil driver: 0 ideal_current, 1 voltage, 2 opamp_pi, 3 industrial, 4 hbridge_pid",
     },
     Variable {
         name: "control_mode",
@@ -318,6 +326,37 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
     param("valve.A_s", Some("m2"), 1.67742e-5, "Spool end area (0.026 in2)").positive(),
     param("valve.zeta", None, 0.4, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
     param("valve.f_n", Some("Hz"), 814.0, "Natural frequency of the first stage").positive(),
+    // Industrial linear current amplifier (driver 3): a PI loop like the op-amp driver's
+    // but with the slow gains of an off-the-shelf unit. L/Kp = 1.28 ms gives the My-502's
+    // 5 ms (2 %) settling; Ki/Kp = R/L cancels the coil pole.
+    param("industrial.Kp", Some("V/A"), 2500.0, "Industrial amplifier proportional gain").non_negative(),
+    param("industrial.Ki", Some("V/(A.s)"), 781250.0, "Industrial amplifier integral gain").non_negative(),
+    param("industrial.slew_rate", Some("V/s"), 1.0e6, "Industrial amplifier output slew-rate limit (1 V/us)").positive(),
+    // H-bridge with PWM and a digital PI current loop (driver 4).
+    param("hbridge.f_pwm", Some("Hz"), 20000.0, "PWM switching frequency (bipolar, centre-aligned)")
+        .positive()
+        .range(Some(0.0), Some(1.0e6)),
+    param("hbridge.f_sample", Some("Hz"), 20000.0, "Sampling rate of the digital PI current loop (one-sample computation delay)")
+        .positive()
+        .range(Some(0.0), Some(1.0e6)),
+    // With feed-forward and Ki/Kp = R/L, a 5 mA step at 12 V runs at 100 % duty to ~4.2 mA
+    // (the supply limits the slope, as on the paper's bench), then the loop closes with
+    // L/Kp = 0.36 ms: 1.9 ms settling of the period-averaged current.
+    param("hbridge.Kp", Some("V/A"), 9000.0, "Digital PI proportional gain").non_negative(),
+    param("hbridge.Ki", Some("V/(A.s)"), 2812500.0, "Digital PI integral gain").non_negative(),
+    Variable {
+        name: "hbridge.feedforward",
+        causality: Parameter,
+        variability: Fixed,
+        ty: VarType::Boolean,
+        unit: None,
+        display_unit: None,
+        start: 1.0,
+        min: None,
+        max: None,
+        min_exclusive: false,
+        description: "Add the feed-forward voltage (R + R_sense)*i_cmd to the digital PI output",
+    },
 ];
 
 /// Index of the variable with this name.

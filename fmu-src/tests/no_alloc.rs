@@ -24,7 +24,7 @@ static GLOBAL: Counting = Counting;
 
 #[test]
 fn do_step_does_not_allocate() {
-    for driver in [0.0, 1.0, 2.0] {
+    for driver in [0.0, 1.0, 2.0, 3.0, 4.0] {
         let mut m = Model::new();
         m.set(vr::DRIVER, driver).unwrap();
         m.initialize().unwrap();

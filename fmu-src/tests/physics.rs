@@ -75,7 +75,7 @@ fn row6_and_row7_valve_flow_settling() {
 
 #[test]
 fn row10_static_flow_gain() {
-    for driver in [0.0, 1.0, 2.0] {
+    for driver in [0.0, 1.0, 2.0, 3.0, 4.0] {
         let mut m = model(&[("driver", driver)]);
         m.set(vr::I_REF, 4e-3).unwrap();
         run(&mut m, 0.1, 1e-3, &[]);
@@ -87,7 +87,7 @@ fn row10_static_flow_gain() {
 
 #[test]
 fn results_do_not_depend_on_the_communication_step() {
-    for driver in [0.0, 1.0, 2.0] {
+    for driver in [0.0, 1.0, 2.0, 3.0, 4.0] {
         let outputs = [vr::I_COIL, vr::U_DRIVER, vr::Q_VALVE];
         let reference = {
             let mut m = model(&[("driver", driver)]);
@@ -143,4 +143,46 @@ fn rail_saturated_start_and_supply_drop_are_handled() {
     run(&mut m, 80e-3, 1e-4, &[]);
     assert_eq!(m.get(vr::DRIVER_SATURATED), Some(0.0));
     assert!((m.get(vr::I_COIL).unwrap() - 2e-3).abs() < 1e-9);
+}
+
+/// Mean of the signal over a sliding window of `window` samples (one PWM period).
+fn period_average(trace: &[(f64, f64)], window: usize) -> Vec<(f64, f64)> {
+    trace.windows(window).map(|w| (w[window - 1].0, w.iter().map(|s| s.1).sum::<f64>() / window as f64)).collect()
+}
+
+fn supply_step(driver: f64, v_supply: f64, duration: f64, h: f64) -> Vec<(f64, f64)> {
+    let mut m = model(&[("driver", driver), ("V_supply", v_supply)]);
+    m.set(vr::I_REF, 5e-3).unwrap();
+    run(&mut m, duration, h, &[vr::I_COIL]).into_iter().map(|(t, y)| (t, y[0])).collect()
+}
+
+#[test]
+fn row4_industrial_driver_settles_in_5_ms() {
+    let ts = settling_time(&supply_step(3.0, 24.0, 20e-3, 1e-6), 0.02);
+    println!("row 4 settling {:.4} ms", ts * 1e3);
+    assert!((4.5e-3..=5.5e-3).contains(&ts), "{ts}");
+}
+
+#[test]
+fn row5_hbridge_average_current_settles_in_2_ms() {
+    // 1 us samples, averaged over one 50 us PWM period.
+    let trace = supply_step(4.0, 12.0, 20e-3, 1e-6);
+    let ts = settling_time(&period_average(&trace, 50), 0.02);
+    let tail = &trace[trace.len() - 50..];
+    let ripple = tail.iter().map(|s| s.1).fold(f64::MIN, f64::max) - tail.iter().map(|s| s.1).fold(f64::MAX, f64::min);
+    println!("row 5 settling {:.4} ms, ripple {:.4} mA p-p", ts * 1e3, ripple * 1e3);
+    assert!((1.7e-3..=2.3e-3).contains(&ts), "{ts}");
+    // The ripple is real: about V/L * T/2 for a 50 % duty, far above rounding.
+    assert!(ripple > 0.05e-3 && ripple < 0.2e-3, "{ripple}");
+}
+
+#[test]
+fn pwm_results_do_not_depend_on_the_communication_step() {
+    let fine = supply_step(4.0, 12.0, 5e-3, 1e-6);
+    let coarse = supply_step(4.0, 12.0, 5e-3, 1e-4);
+    for (k, (t, i)) in coarse.iter().enumerate() {
+        let (tf, i_fine) = fine[k * 100];
+        assert!((t - tf).abs() < 1e-12);
+        assert!((i - i_fine).abs() <= 1e-6 * 5e-3, "t {t}: {i} vs {i_fine}");
+    }
 }

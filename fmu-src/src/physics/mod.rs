@@ -12,6 +12,16 @@
 //! (a Taylor polynomial of the guard inside a short window, then bisection).
 //! The cost of a step without events is one 9x9 matrix-vector product per sub-step, with
 //! propagators cached per (mode, sub-step); no heap allocation anywhere in `advance`.
+//!
+//! The H-bridge driver adds *time events* on an absolute clock (PWM edges, samples of its
+//! digital PI loop, see [`hbridge`]); the step is cut at each, so switching instants are
+//! exact and do not depend on the communication step.
+
+mod events;
+pub mod hbridge;
+
+use events::{locate_event, may_cross};
+use hbridge::Digital;
 
 use crate::model::Reader;
 use crate::variables::{vr, N_VARIABLES};
@@ -35,13 +45,10 @@ const ONE: usize = 8; // the constant 1, for affine terms
 
 /// Coarse sub-steps keep |lambda|*h below this; guards are checked at their ends.
 const THETA_COARSE: f64 = 6.0;
-/// Event search windows keep |lambda|*h below this, where a Taylor polynomial is exact to rounding.
-const THETA_FINE: f64 = 1.0;
-const TAYLOR_TERMS: usize = 24;
-/// Samples of a guard polynomial per search window.
-const GUARD_SAMPLES: usize = 16;
 /// A step that switches mode more often than this is chattering: refuse it.
 const MAX_EVENTS_PER_STEP: u32 = 1000;
+/// Bounds the work of one doStep with the PWM driver (each instant costs ~0.3 us).
+const MAX_TIME_EVENTS_PER_STEP: u64 = 10_000_000;
 const MAX_GUARDS: usize = 4;
 const CACHE_SLOTS: usize = 8;
 
@@ -50,7 +57,10 @@ pub enum DriverKind {
     IdealCurrent,
     Voltage,
     OpampPi,
+    Industrial,
+    HBridge,
 }
+
 
 /// Driver modes. The op-amp driver moves between the last seven.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,9 +76,11 @@ pub enum Mode {
     LowIntegrating,
     SlewUp,
     SlewDown,
+    /// H-bridge: output held at +V or -V between switching instants.
+    Switched,
 }
 
-const MODES: [Mode; 9] = [
+const MODES: [Mode; 10] = [
     Mode::Ideal,
     Mode::Voltage,
     Mode::Linear,
@@ -78,6 +90,7 @@ const MODES: [Mode; 9] = [
     Mode::LowIntegrating,
     Mode::SlewUp,
     Mode::SlewDown,
+    Mode::Switched,
 ];
 
 impl Mode {
@@ -93,10 +106,12 @@ impl Mode {
 #[derive(Clone, Copy, Debug)]
 pub struct Params {
     pub driver: DriverKind,
+    /// Gains, output drop and slew rate of the continuous PI loop of the chosen driver.
     pub kp: f64,
     pub ki: f64,
     pub v_drop: f64,
     pub slew_rate: f64,
+    pub hbridge: hbridge::HBridgeParams,
     pub inductance: f64,
     pub r_total: f64,
     pub k_backemf: f64,
@@ -116,7 +131,9 @@ impl Params {
             0 => DriverKind::IdealCurrent,
             1 => DriverKind::Voltage,
             2 => DriverKind::OpampPi,
-            other => return Err(format!("driver = {other} is not available (0, 1 or 2)")),
+            3 => DriverKind::Industrial,
+            4 => DriverKind::HBridge,
+            other => return Err(format!("driver = {other} is not available (0 to 4)")),
         };
         if v[vr::CONTROL_MODE] != 0.0 {
             return Err(format!("control_mode = {} is not available (0 = current)", v[vr::CONTROL_MODE]));
@@ -127,12 +144,16 @@ impl Params {
                 var.check(v[i])?;
             }
         }
+        let industrial = driver == DriverKind::Industrial;
+        let pick = |opamp: usize, ind: usize| if industrial { v[ind] } else { v[opamp] };
         Ok(Params {
             driver,
-            kp: v[vr::DRIVER_KP],
-            ki: v[vr::DRIVER_KI],
-            v_drop: v[vr::DRIVER_V_DROP],
-            slew_rate: v[vr::DRIVER_SLEW_RATE],
+            kp: pick(vr::DRIVER_KP, vr::INDUSTRIAL_KP),
+            ki: pick(vr::DRIVER_KI, vr::INDUSTRIAL_KI),
+            // The op-amp's output stage drop; the other drivers reach the supply.
+            v_drop: if driver == DriverKind::OpampPi { v[vr::DRIVER_V_DROP] } else { 0.0 },
+            slew_rate: pick(vr::DRIVER_SLEW_RATE, vr::INDUSTRIAL_SLEW_RATE),
+            hbridge: hbridge::HBridgeParams::from_values(v),
             inductance: v[vr::COIL_L],
             r_total: v[vr::COIL_R] + v[vr::COIL_R_SENSE],
             k_backemf: v[vr::COIL_K_B],
@@ -234,6 +255,7 @@ fn dynamics(p: &Params, mode: Mode) -> Mat {
             a.set_row(U, &(-p.kp * i_row + integrate.transpose()));
         }
         Mode::HighIntegrating | Mode::LowIntegrating => a.set_row(UI, &integrate.transpose()),
+        Mode::Switched => {}
         Mode::SlewUp | Mode::SlewDown => {
             a.set_row(UI, &integrate.transpose());
             a[(U, ONE)] = if mode == Mode::SlewUp { p.slew_rate } else { -p.slew_rate };
@@ -253,7 +275,7 @@ fn mode_guards(p: &Params, mode: Mode, a: &Mat) -> Vec<Vector> {
     let e = error_row();
     let slew = p.slew_rate * unit(ONE);
     match mode {
-        Mode::Ideal | Mode::Voltage => vec![],
+        Mode::Ideal | Mode::Voltage | Mode::Switched => vec![],
         Mode::Linear => {
             let du = a.row(U).transpose();
             vec![u - vmax, -u - vmax, du - slew, -du - slew]
@@ -282,6 +304,7 @@ impl PropagatorCache {
     }
 
     fn get(&mut self, mode: usize, sys: &ModeSystem, h: f64) -> &Mat {
+        // Keys hold the bits of h: equal sub-steps (the common case) hit exactly.
         let key = (mode, h.to_bits());
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
@@ -307,29 +330,39 @@ pub struct StepEvents {
 #[derive(Clone)]
 pub struct Physics {
     params: Params,
-    systems: [ModeSystem; 9],
+    systems: [ModeSystem; MODES.len()],
     z: Vector,
     mode: Mode,
+    /// Discrete state of the H-bridge's digital loop and PWM.
+    digital: Digital,
     cache: PropagatorCache,
 }
 
 impl Default for Physics {
     fn default() -> Self {
-        Physics::start(&crate::variables::start_values()).expect("start values are valid")
+        Physics::start(&crate::variables::start_values(), 0.0).expect("start values are valid")
     }
 }
 
 impl Physics {
-    /// Builds the mode systems and puts the model in equilibrium for the current inputs.
-    pub fn start(values: &[f64; N_VARIABLES]) -> Result<Physics, String> {
+    /// Builds the mode systems and puts the model in equilibrium for the current inputs at
+    /// `start_time` (the sampling clock of a digital driver counts from time 0).
+    pub fn start(values: &[f64; N_VARIABLES], start_time: f64) -> Result<Physics, String> {
         let params = Params::from_values(values)?;
         let systems = MODES.map(|m| ModeSystem::new(&params, m));
-        let mut physics = Physics { params, systems, z: Vector::zeros(), mode: Mode::Linear, cache: PropagatorCache::new() };
-        physics.equilibrium(values[vr::I_REF], values[vr::V_SUPPLY]);
+        let mut physics = Physics {
+            params,
+            systems,
+            z: Vector::zeros(),
+            mode: Mode::Linear,
+            digital: Digital::default(),
+            cache: PropagatorCache::new(),
+        };
+        physics.equilibrium(values[vr::I_REF], values[vr::V_SUPPLY], start_time);
         Ok(physics)
     }
 
-    fn equilibrium(&mut self, i_ref: f64, v_supply: f64) {
+    fn equilibrium(&mut self, i_ref: f64, v_supply: f64, start_time: f64) {
         let p = self.params;
         let vmax = p.rail(v_supply);
         let mut z = Vector::zeros();
@@ -343,6 +376,11 @@ impl Physics {
         // its integrator stopped at the rail value.
         z[UI] = u;
         z[XS] = p.k1 * z[I] / p.kw;
+        if p.driver == DriverKind::HBridge {
+            // The average bridge voltage holds the current; the PWM starts at the next period.
+            self.digital = Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_ref, vmax, start_time);
+            z[U] = self.digital.output(vmax);
+        }
         self.z = z;
         self.mode = self.consistent_mode(&z);
     }
@@ -368,6 +406,7 @@ impl Physics {
     fn saturated(&self) -> bool {
         match self.mode {
             Mode::Voltage => (self.params.r_total * self.z[IREF]).abs() > self.z[VMAX],
+            Mode::Switched => self.digital.saturated(self.z[VMAX]),
             m => m.at_rail(),
         }
     }
@@ -383,7 +422,8 @@ impl Physics {
                 z[U] = p.r_total * i_ref;
             }
             DriverKind::Voltage => z[U] = (p.r_total * i_ref).clamp(-z[VMAX], z[VMAX]),
-            DriverKind::OpampPi => {}
+            DriverKind::HBridge => z[U] = self.digital.output(rail),
+            DriverKind::OpampPi | DriverKind::Industrial => {}
         }
     }
 
@@ -394,7 +434,8 @@ impl Physics {
         match p.driver {
             DriverKind::IdealCurrent => return Mode::Ideal,
             DriverKind::Voltage => return Mode::Voltage,
-            DriverKind::OpampPi => {}
+            DriverKind::HBridge => return Mode::Switched,
+            DriverKind::OpampPi | DriverKind::Industrial => {}
         }
         let vmax = z[VMAX];
         let e = z[IREF] - z[I];
@@ -442,31 +483,78 @@ impl Physics {
         }
     }
 
-    /// Advances `step` seconds with the inputs in `values` held constant.
+    /// Advances from `t_start` by `step` seconds with the inputs in `values` held constant.
     /// On error the state is left as it was.
-    pub fn advance(&mut self, values: &[f64; N_VARIABLES], step: f64) -> Result<StepEvents, String> {
-        let mut z = self.z;
-        let mut mode = self.mode;
+    pub fn advance(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
+        let saved = (self.z, self.mode, self.digital);
+        let result = self.advance_inner(values, t_start, step);
+        if result.is_err() {
+            (self.z, self.mode, self.digital) = saved;
+        }
+        result
+    }
+
+    fn advance_inner(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
         let mut events = StepEvents::default();
-        // A state that ended the last step is consistent with its mode; only new inputs
-        // (or a restored state) need the mode chosen again.
         let i_ref = values[vr::I_REF];
         let rail = self.params.rail(values[vr::V_SUPPLY]);
-        if z[IREF] != i_ref || z[VMAX] != rail {
+        // A state that ended the last step is consistent with its mode; only new inputs
+        // (or a restored state) need the mode chosen again.
+        if self.z[IREF] != i_ref || self.z[VMAX] != rail {
+            let mut z = self.z;
             self.apply_inputs(&mut z, i_ref, rail);
-            mode = self.consistent_mode(&z);
+            let mode = self.consistent_mode(&z);
             self.project(&mut z, mode);
             count_switch(&mut events, self.mode, mode);
+            (self.z, self.mode) = (z, mode);
         }
+        let t_end = t_start + step;
+        if self.digital.events_until(&self.params.hbridge, t_end) > MAX_TIME_EVENTS_PER_STEP {
+            return Err(format!(
+                "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
+            ));
+        }
+        // Time events a hair past the step end (rounding of t_start + step) belong to it.
+        let slack = 1e-9 * step.min(self.params.hbridge.period());
+        let mut t = t_start;
+        loop {
+            let t_event = self.digital.next_event(&self.params.hbridge);
+            let fire = t_event <= t_end + slack;
+            let segment_end = if fire { t_event.min(t_end) } else { t_end };
+            if segment_end > t {
+                self.flow(segment_end - t, &mut events)?;
+                t = segment_end;
+            }
+            if !fire {
+                break;
+            }
+            let p = self.params;
+            self.digital.fire(&p.hbridge, self.z[I], i_ref, p.r_total, self.z[VMAX]);
+            self.z[U] = self.digital.output(self.z[VMAX]);
+        }
+        if !self.z.iter().all(|x| x.is_finite()) {
+            return Err("the state became non-finite; step refused".into());
+        }
+        Ok(events)
+    }
+
+    /// Continuous evolution over `span` seconds with state events (driver mode changes).
+    fn flow(&mut self, span_total: f64, events: &mut StepEvents) -> Result<(), String> {
+        let (mut z, mut mode) = (self.z, self.mode);
         let mut done = 0.0;
         let mut switches = 0;
         // Guards that fired without changing the mode: passed, ignored for this segment.
         let mut passed: u8 = 0;
-        'modes: while done < step {
-            let span = step - done;
-            let n = self.systems[mode.index()].substeps(span, THETA_COARSE);
-            let h = span / n as f64;
+        'modes: while done < span_total {
+            let span = span_total - done;
             let sys = &self.systems[mode.index()];
+            if mode == Mode::Switched {
+                // Between PWM edges: short, irregular spans; a Taylor series beats exp().
+                z = taylor_propagate(sys, &z, span);
+                break;
+            }
+            let n = sys.substeps(span, THETA_COARSE);
+            let h = span / n as f64;
             let propagator = self.cache.get(mode.index(), sys, h);
             for k in 0..n {
                 let next = propagator * z;
@@ -476,7 +564,7 @@ impl Physics {
                         done += k as f64 * h + tau;
                         let new_mode = self.consistent_mode(&z);
                         self.project(&mut z, new_mode);
-                        count_switch(&mut events, mode, new_mode);
+                        count_switch(events, mode, new_mode);
                         passed = if new_mode == mode { passed | 1 << guard } else { 0 };
                         mode = new_mode;
                         switches += 1;
@@ -492,12 +580,8 @@ impl Physics {
             }
             break;
         }
-        if !z.iter().all(|x| x.is_finite()) {
-            return Err("the state became non-finite; step refused".into());
-        }
-        self.z = z;
-        self.mode = mode;
-        Ok(events)
+        (self.z, self.mode) = (z, mode);
+        Ok(())
     }
 
     pub fn write_bytes(&self, out: &mut Vec<u8>) {
@@ -505,15 +589,17 @@ impl Physics {
         for x in self.z.iter() {
             out.extend_from_slice(&x.to_le_bytes());
         }
+        self.digital.write_bytes(out);
     }
 
     pub fn read_bytes(values: &[f64; N_VARIABLES], r: &mut Reader) -> Result<Physics, String> {
         let mode_index = r.u8()? as usize;
         let mode = *MODES.get(mode_index).ok_or_else(|| format!("state has unknown driver mode {mode_index}"))?;
-        let mut physics = Physics::start(values).map_err(|e| format!("state holds invalid parameters: {e}"))?;
+        let mut physics = Physics::start(values, 0.0).map_err(|e| format!("state holds invalid parameters: {e}"))?;
         for k in 0..N {
             physics.z[k] = r.f64()?;
         }
+        physics.digital = Digital::read_bytes(r)?;
         if !physics.z.iter().all(|x| x.is_finite()) {
             return Err("state holds non-finite values".into());
         }
@@ -531,97 +617,27 @@ fn count_switch(events: &mut StepEvents, from: Mode, to: Mode) {
     }
 }
 
-/// Could a guard (not in `passed`) have turned positive between `z0` and `z1` (`h`
-/// apart)? True when it goes from <= 0 to > 0, or when the tangents at both ends meet
-/// above zero (a bump).
-fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, passed: u8) -> bool {
-    (0..sys.n_guards).filter(|k| passed & 1 << k == 0).any(|k| {
-        let g0 = sys.guards[k].dot(z0);
-        let g1 = sys.guards[k].dot(z1);
-        if g0 > 0.0 {
-            return false;
-        }
-        if g1 > 0.0 {
-            return true;
-        }
-        let d0 = sys.guard_rates[k].dot(z0);
-        let d1 = sys.guard_rates[k].dot(z1);
-        if d0 > 0.0 && d1 < 0.0 {
-            let t = ((g1 - g0 - d1 * h) / (d0 - d1)).clamp(0.0, h);
-            return g0 + d0 * t > 0.0;
-        }
-        false
-    })
-}
-
-/// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
-/// guard and the state there. Searched in windows short enough for a Taylor polynomial
-/// of the exact solution.
-fn locate_event(sys: &ModeSystem, z0: &Vector, h: f64, passed: u8) -> Option<(f64, usize, Vector)> {
-    let windows = sys.substeps(h, THETA_FINE);
-    let w = h / windows as f64;
-    let mut start = *z0;
-    for j in 0..windows {
-        // Taylor terms of z(t) = exp(A t) z: terms[k] = A^k z / k!
-        let mut terms = [Vector::zeros(); TAYLOR_TERMS];
-        terms[0] = start;
-        for k in 1..TAYLOR_TERMS {
-            terms[k] = sys.a * terms[k - 1] / k as f64;
-        }
-        let mut first: Option<(f64, usize)> = None;
-        for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
-            let mut coef = [0.0; TAYLOR_TERMS];
-            for (c, t) in coef.iter_mut().zip(terms.iter()) {
-                *c = sys.guards[g].dot(t);
-            }
-            if coef[0] > 0.0 {
-                continue; // passed before this window (edge triggered)
-            }
-            if let Some(tau) = first_positive(&coef, w, first.map_or(w, |f| f.0)) {
-                first = Some((tau, g));
-            }
-        }
-        if let Some((tau, g)) = first {
-            return Some((j as f64 * w + tau, g, horner_vec(&terms, tau)));
-        }
-        start = horner_vec(&terms, w);
+/// exp(A t) z by its Taylor series, in pieces with |lambda| h <= 1, each summed until
+/// (|lambda| h)^k / k! is below rounding.
+fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
+    let pieces = sys.substeps(span, 1.0);
+    let h = span / pieces as f64;
+    let scale = sys.radius * h;
+    let mut terms = 1;
+    let mut bound = 1.0;
+    while terms < events::TAYLOR_TERMS && bound > 1e-18 {
+        bound *= scale / terms as f64;
+        terms += 1;
     }
-    None
-}
-
-fn horner(coef: &[f64; TAYLOR_TERMS], t: f64) -> f64 {
-    coef.iter().rev().fold(0.0, |acc, c| acc * t + c)
-}
-
-fn horner_vec(terms: &[Vector; TAYLOR_TERMS], t: f64) -> Vector {
-    terms.iter().rev().fold(Vector::zeros(), |acc, c| acc * t + c)
-}
-
-/// First t in (0, limit] where the polynomial turns positive (sampled, then bisected to the
-/// last representable instant at or before the crossing's far side).
-fn first_positive(coef: &[f64; TAYLOR_TERMS], w: f64, limit: f64) -> Option<f64> {
-    let mut lo = 0.0;
-    for s in 1..=GUARD_SAMPLES {
-        let t = (w * s as f64 / GUARD_SAMPLES as f64).min(limit);
-        if horner(coef, t) > 0.0 {
-            let mut hi = t;
-            for _ in 0..200 {
-                let mid = 0.5 * (lo + hi);
-                if mid <= lo || mid >= hi {
-                    break;
-                }
-                if horner(coef, mid) > 0.0 {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
-            return Some(hi);
+    let mut z = *z0;
+    for _ in 0..pieces {
+        let mut term = z;
+        let mut sum = z;
+        for k in 1..terms {
+            term = sys.a * term * (h / k as f64);
+            sum += term;
         }
-        lo = t;
-        if t >= limit {
-            break;
-        }
+        z = sum;
     }
-    None
+    z
 }
