@@ -235,9 +235,11 @@ pub mod vr {
     pub const HBRIDGE_KP: usize = 32;
     pub const HBRIDGE_KI: usize = 33;
     pub const HBRIDGE_FEEDFORWARD: usize = 34;
+    pub const VALVE_X_FLAPPER_MAX: usize = 35;
+    pub const VALVE_X_SPOOL_MAX: usize = 36;
 }
 
-pub const N_VARIABLES: usize = 35;
+pub const N_VARIABLES: usize = 37;
 
 pub static VARIABLES: [Variable; N_VARIABLES] = [
     Variable {
@@ -357,6 +359,9 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         min_exclusive: false,
         description: "Add the feed-forward voltage (R + R_sense)*i_cmd to the digital PI output",
     },
+    // Optional valve travel limits (the paper's linear model has none).
+    param("valve.x_flapper_max", Some("m"), 0.0, "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
+    param("valve.x_spool_max", Some("m"), 0.0, "Spool travel limit, inelastic stop (0: none)").non_negative(),
 ];
 
 /// Index of the variable with this name.

@@ -186,3 +186,37 @@ fn pwm_results_do_not_depend_on_the_communication_step() {
         assert!((i - i_fine).abs() <= 1e-6 * 5e-3, "t {t}: {i} vs {i_fine}");
     }
 }
+
+#[test]
+fn travel_limits_hold_flapper_and_spool_and_release_them() {
+    // 10 mA drives the spool to K1*i/Kw = 0.38 mm and the flapper to ~55 um in the transient.
+    let limits = [("driver", 0.0), ("valve.x_flapper_max", 30e-6), ("valve.x_spool_max", 0.2e-3)];
+    let outputs = [vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE];
+    let traces: Vec<_> = [1e-6, 1e-4].iter().map(|&h| {
+        let mut m = model(&limits);
+        m.set(vr::I_REF, 10e-3).unwrap();
+        run(&mut m, 20e-3, h, &outputs)
+    }).collect();
+    let (fine, coarse) = (&traces[0], &traces[1]);
+    let max_flapper = fine.iter().map(|s| s.1[0]).fold(f64::MIN, f64::max);
+    assert!(max_flapper <= 30e-6 * (1.0 + 1e-12) && max_flapper > 29.9e-6, "{max_flapper}");
+    let last = &fine.last().unwrap().1;
+    assert!((last[1] - 0.2e-3).abs() < 1e-15, "spool at its stop: {}", last[1]);
+    assert!((last[2] - 0.664515 * 0.2e-3).abs() < 1e-15);
+    // The flapper carries the torque the stopped spool's feedback wire cannot.
+    let flapper_hold = (2.82462 * 10e-3 - 74.2853 * 0.2e-3) / 511.545;
+    assert!((last[0] - flapper_hold).abs() < 1e-9 * flapper_hold, "{} vs {flapper_hold}", last[0]);
+    for (k, (t, y)) in coarse.iter().enumerate() {
+        for o in 0..3 {
+            let y_fine = fine[k * 100].1[o];
+            assert!((y[o] - y_fine).abs() <= 1e-6 * last[o].abs(), "t {t} output {o}: {} vs {y_fine}", y[o]);
+        }
+    }
+    // Back to zero current: both leave their stops and return to centre.
+    let mut m = model(&limits);
+    m.set(vr::I_REF, 10e-3).unwrap();
+    run(&mut m, 20e-3, 1e-4, &[]);
+    m.set(vr::I_REF, 0.0).unwrap();
+    run(&mut m, 60e-3, 1e-4, &[]);
+    assert!(m.get(vr::X_SPOOL).unwrap().abs() < 1e-9 && m.get(vr::X_FLAPPER).unwrap().abs() < 1e-9);
+}

@@ -49,7 +49,8 @@ const THETA_COARSE: f64 = 6.0;
 const MAX_EVENTS_PER_STEP: u32 = 1000;
 /// Bounds the work of one doStep with the PWM driver (each instant costs ~0.3 us).
 const MAX_TIME_EVENTS_PER_STEP: u64 = 10_000_000;
-const MAX_GUARDS: usize = 4;
+/// Driver guards (4) + flapper stop guards (2) + spool stop guards (2).
+const MAX_GUARDS: usize = 8;
 const CACHE_SLOTS: usize = 8;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -123,6 +124,9 @@ pub struct Params {
     pub spool_area: f64,
     pub zeta: f64,
     pub wn: f64,
+    /// Flapper and spool travel limits (0: none).
+    pub x_flapper_max: f64,
+    pub x_spool_max: f64,
 }
 
 impl Params {
@@ -165,6 +169,8 @@ impl Params {
             spool_area: v[vr::VALVE_A_S],
             zeta: v[vr::VALVE_ZETA],
             wn: 2.0 * std::f64::consts::PI * v[vr::VALVE_F_N],
+            x_flapper_max: v[vr::VALVE_X_FLAPPER_MAX],
+            x_spool_max: v[vr::VALVE_X_SPOOL_MAX],
         })
     }
 
@@ -209,17 +215,65 @@ struct ModeSystem {
 }
 
 impl ModeSystem {
+    /// A driver mode with the valve free of its travel stops.
     fn new(p: &Params, mode: Mode) -> ModeSystem {
         let a = dynamics(p, mode);
-        let mut guards = [Vector::zeros(); MAX_GUARDS];
-        let list = mode_guards(p, mode, &a);
-        guards[..list.len()].copy_from_slice(&list);
-        let mut guard_rates = [Vector::zeros(); MAX_GUARDS];
-        for (rate, g) in guard_rates.iter_mut().zip(guards.iter()) {
-            *rate = a.transpose() * g;
-        }
         let radius = a.complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max);
-        ModeSystem { a, guards, guard_rates, n_guards: list.len(), radius }
+        let mut sys = ModeSystem { a, guards: [Vector::zeros(); MAX_GUARDS], guard_rates: [Vector::zeros(); MAX_GUARDS], n_guards: 0, radius };
+        for g in mode_guards(p, mode, &a) {
+            sys.push_guard(g);
+        }
+        sys
+    }
+
+    fn push_guard(&mut self, guard: Vector) {
+        self.guards[self.n_guards] = guard;
+        self.guard_rates[self.n_guards] = self.a.transpose() * guard;
+        self.n_guards += 1;
+    }
+
+    /// This driver mode with the valve's travel stops: a part at a stop is held there
+    /// (inelastic), a free part gets guards for reaching its stops. No allocation.
+    fn with_stops(&self, p: &Params, stops: Stops) -> ModeSystem {
+        if p.x_flapper_max <= 0.0 && p.x_spool_max <= 0.0 {
+            return *self;
+        }
+        let mut sys = *self;
+        let flapper_accel = self.a.row(VF).transpose();
+        if stops.flapper != 0 {
+            sys.a.row_mut(XF).fill(0.0);
+            sys.a.row_mut(VF).fill(0.0);
+        }
+        if stops.spool != 0 {
+            sys.a.row_mut(XS).fill(0.0);
+        }
+        // The free system's spectral radius bounds the held one's well enough for sub-steps.
+        sys.n_guards = 0;
+        for k in 0..self.n_guards {
+            sys.push_guard(self.guards[k]);
+        }
+        let one = unit(ONE);
+        if p.x_flapper_max > 0.0 {
+            match stops.flapper {
+                0 => {
+                    sys.push_guard(unit(XF) - p.x_flapper_max * one);
+                    sys.push_guard(-unit(XF) - p.x_flapper_max * one);
+                }
+                // Leaves the stop when the torque pulls it back.
+                side => sys.push_guard(-(side as f64) * flapper_accel),
+            }
+        }
+        if p.x_spool_max > 0.0 {
+            match stops.spool {
+                0 => {
+                    sys.push_guard(unit(XS) - p.x_spool_max * one);
+                    sys.push_guard(-unit(XS) - p.x_spool_max * one);
+                }
+                // Leaves the stop when the flapper drives it back.
+                side => sys.push_guard(-(side as f64) * unit(XF)),
+            }
+        }
+        sys
     }
 
     fn substeps(&self, span: f64, theta: f64) -> usize {
@@ -290,6 +344,19 @@ fn mode_guards(p: &Params, mode: Mode, a: &Mat) -> Vec<Vector> {
     }
 }
 
+/// Flapper and spool at a travel stop: -1 lower, 0 free, +1 upper.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stops {
+    pub flapper: i8,
+    pub spool: i8,
+}
+
+impl Stops {
+    fn code(self) -> usize {
+        ((self.flapper + 1) * 3 + self.spool + 1) as usize
+    }
+}
+
 /// A few recently used propagators exp(A_mode * h).
 #[derive(Clone, Copy)]
 struct PropagatorCache {
@@ -303,9 +370,10 @@ impl PropagatorCache {
         PropagatorCache { keys: [(usize::MAX, 0); CACHE_SLOTS], values: [Mat::zeros(); CACHE_SLOTS], next: 0 }
     }
 
-    fn get(&mut self, mode: usize, sys: &ModeSystem, h: f64) -> &Mat {
-        // Keys hold the bits of h: equal sub-steps (the common case) hit exactly.
-        let key = (mode, h.to_bits());
+    /// `system` names the (mode, stops) pair; keys hold the bits of h, so equal sub-steps
+    /// (the common case) hit exactly.
+    fn get(&mut self, system: usize, sys: &ModeSystem, h: f64) -> &Mat {
+        let key = (system, h.to_bits());
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
             None => {
@@ -333,6 +401,9 @@ pub struct Physics {
     systems: [ModeSystem; MODES.len()],
     z: Vector,
     mode: Mode,
+    stops: Stops,
+    /// The system of (mode, stops).
+    active: ModeSystem,
     /// Discrete state of the H-bridge's digital loop and PWM.
     digital: Digital,
     cache: PropagatorCache,
@@ -355,6 +426,8 @@ impl Physics {
             systems,
             z: Vector::zeros(),
             mode: Mode::Linear,
+            stops: Stops::default(),
+            active: systems[Mode::Linear.index()],
             digital: Digital::default(),
             cache: PropagatorCache::new(),
         };
@@ -375,14 +448,63 @@ impl Physics {
         // An unsaturated PI holds e = 0 with ui = u; a saturated one sits at the rail with
         // its integrator stopped at the rail value.
         z[UI] = u;
-        z[XS] = p.k1 * z[I] / p.kw;
+        // Torque balance K1 i = Kw x_s + Kf x_f with the flapper centred, unless the spool
+        // sits at its stop and the flapper carries the rest.
+        let free_spool = p.k1 * z[I] / p.kw;
+        z[XS] = if p.x_spool_max > 0.0 { free_spool.clamp(-p.x_spool_max, p.x_spool_max) } else { free_spool };
+        let flapper = (p.k1 * z[I] - p.kw * z[XS]) / p.kf;
+        z[XF] = if p.x_flapper_max > 0.0 { flapper.clamp(-p.x_flapper_max, p.x_flapper_max) } else { flapper };
         if p.driver == DriverKind::HBridge {
             // The average bridge voltage holds the current; the PWM starts at the next period.
             self.digital = Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_ref, vmax, start_time);
             z[U] = self.digital.output(vmax);
         }
+        self.settle(&mut z);
         self.z = z;
-        self.mode = self.consistent_mode(&z);
+    }
+
+    /// Chooses the stops and driver mode consistent with `z`, puts `z` on them and makes
+    /// their system the active one. Returns whether anything changed.
+    fn settle(&mut self, z: &mut Vector) -> bool {
+        let stops = self.consistent_stops(z);
+        let p = &self.params;
+        if stops.flapper != 0 {
+            z[XF] = stops.flapper as f64 * p.x_flapper_max;
+            z[VF] = 0.0;
+        }
+        if stops.spool != 0 {
+            z[XS] = stops.spool as f64 * p.x_spool_max;
+        }
+        let mode = self.consistent_mode(z);
+        self.project(z, mode);
+        let changed = (mode, stops) != (self.mode, self.stops);
+        if changed {
+            (self.mode, self.stops) = (mode, stops);
+            self.active = self.systems[mode.index()].with_stops(&self.params, stops);
+        }
+        changed
+    }
+
+    /// Which travel stops hold the valve at `z`: a part at its limit stays there while it is
+    /// driven outwards (flapper: its free acceleration; spool: the flapper's sign).
+    fn consistent_stops(&self, z: &Vector) -> Stops {
+        let p = &self.params;
+        let mut at_rest = *z;
+        at_rest[VF] = 0.0;
+        let flapper_accel = self.systems[0].a.row(VF).transpose().dot(&at_rest);
+        let side = |x: f64, limit: f64, drive: f64| -> i8 {
+            let reach = limit * (1.0 - 1e-12);
+            if limit <= 0.0 {
+                0
+            } else if x >= reach && drive > 0.0 {
+                1
+            } else if x <= -reach && drive < 0.0 {
+                -1
+            } else {
+                0
+            }
+        };
+        Stops { flapper: side(z[XF], p.x_flapper_max, flapper_accel), spool: side(z[XS], p.x_spool_max, z[XF]) }
     }
 
     pub fn params(&self) -> &Params {
@@ -417,13 +539,9 @@ impl Physics {
         z[IREF] = i_ref;
         z[VMAX] = rail;
         match p.driver {
-            DriverKind::IdealCurrent => {
-                z[I] = i_ref;
-                z[U] = p.r_total * i_ref;
-            }
-            DriverKind::Voltage => z[U] = (p.r_total * i_ref).clamp(-z[VMAX], z[VMAX]),
-            DriverKind::HBridge => z[U] = self.digital.output(rail),
-            DriverKind::OpampPi | DriverKind::Industrial => {}
+            // The ideal source's voltage is what holds the current (its L di/dt impulse aside).
+            DriverKind::IdealCurrent => z[U] = p.r_total * i_ref,
+            DriverKind::Voltage | DriverKind::HBridge | DriverKind::OpampPi | DriverKind::Industrial => {}
         }
     }
 
@@ -473,23 +591,28 @@ impl Physics {
         }
     }
 
-    /// Puts the algebraic part of the state on the mode's manifold.
+    /// Puts the algebraic part of the state on the mode's manifold (also after each
+    /// propagation, so held values stay exact rather than within rounding of exp()).
     fn project(&self, z: &mut Vector, mode: Mode) {
+        let p = &self.params;
         match mode {
-            Mode::Linear => z[U] = self.params.u_lin_row().dot(z),
+            Mode::Ideal => z[I] = z[IREF],
+            Mode::Voltage => z[U] = (p.r_total * z[IREF]).clamp(-z[VMAX], z[VMAX]),
+            Mode::Switched => z[U] = self.digital.output(z[VMAX]),
+            Mode::Linear => z[U] = p.u_lin_row().dot(z),
             Mode::HighFrozen | Mode::HighIntegrating => z[U] = z[VMAX],
             Mode::LowFrozen | Mode::LowIntegrating => z[U] = -z[VMAX],
-            _ => {}
+            Mode::SlewUp | Mode::SlewDown => {}
         }
     }
 
     /// Advances from `t_start` by `step` seconds with the inputs in `values` held constant.
     /// On error the state is left as it was.
     pub fn advance(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
-        let saved = (self.z, self.mode, self.digital);
+        let saved = (self.z, self.mode, self.stops, self.active, self.digital);
         let result = self.advance_inner(values, t_start, step);
         if result.is_err() {
-            (self.z, self.mode, self.digital) = saved;
+            (self.z, self.mode, self.stops, self.active, self.digital) = saved;
         }
         result
     }
@@ -503,10 +626,10 @@ impl Physics {
         if self.z[IREF] != i_ref || self.z[VMAX] != rail {
             let mut z = self.z;
             self.apply_inputs(&mut z, i_ref, rail);
-            let mode = self.consistent_mode(&z);
-            self.project(&mut z, mode);
-            count_switch(&mut events, self.mode, mode);
-            (self.z, self.mode) = (z, mode);
+            let before = self.mode;
+            self.settle(&mut z);
+            count_switch(&mut events, before, self.mode);
+            self.z = z;
         }
         let t_end = t_start + step;
         if self.digital.events_until(&self.params.hbridge, t_end) > MAX_TIME_EVENTS_PER_STEP {
@@ -540,33 +663,33 @@ impl Physics {
 
     /// Continuous evolution over `span` seconds with state events (driver mode changes).
     fn flow(&mut self, span_total: f64, events: &mut StepEvents) -> Result<(), String> {
-        let (mut z, mut mode) = (self.z, self.mode);
+        let mut z = self.z;
         let mut done = 0.0;
         let mut switches = 0;
         // Guards that fired without changing the mode: passed, ignored for this segment.
         let mut passed: u8 = 0;
         'modes: while done < span_total {
             let span = span_total - done;
-            let sys = &self.systems[mode.index()];
-            if mode == Mode::Switched {
+            let sys = &self.active;
+            if self.mode == Mode::Switched {
                 // Between PWM edges: short, irregular spans; a Taylor series beats exp().
                 z = taylor_propagate(sys, &z, span);
                 break;
             }
             let n = sys.substeps(span, THETA_COARSE);
             let h = span / n as f64;
-            let propagator = self.cache.get(mode.index(), sys, h);
+            let key = self.mode.index() + MODES.len() * self.stops.code();
+            let propagator = self.cache.get(key, sys, h);
             for k in 0..n {
                 let next = propagator * z;
                 if may_cross(sys, &z, &next, h, passed) {
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
                         z = at;
                         done += k as f64 * h + tau;
-                        let new_mode = self.consistent_mode(&z);
-                        self.project(&mut z, new_mode);
-                        count_switch(events, mode, new_mode);
-                        passed = if new_mode == mode { passed | 1 << guard } else { 0 };
-                        mode = new_mode;
+                        let before = self.mode;
+                        let changed = self.settle(&mut z);
+                        count_switch(events, before, self.mode);
+                        passed = if changed { 0 } else { passed | 1 << guard };
                         switches += 1;
                         if switches > MAX_EVENTS_PER_STEP {
                             return Err(format!(
@@ -580,12 +703,14 @@ impl Physics {
             }
             break;
         }
-        (self.z, self.mode) = (z, mode);
+        self.project(&mut z, self.mode);
+        self.z = z;
         Ok(())
     }
 
     pub fn write_bytes(&self, out: &mut Vec<u8>) {
         out.push(self.mode.index() as u8);
+        out.push(self.stops.code() as u8);
         for x in self.z.iter() {
             out.extend_from_slice(&x.to_le_bytes());
         }
@@ -595,6 +720,11 @@ impl Physics {
     pub fn read_bytes(values: &[f64; N_VARIABLES], r: &mut Reader) -> Result<Physics, String> {
         let mode_index = r.u8()? as usize;
         let mode = *MODES.get(mode_index).ok_or_else(|| format!("state has unknown driver mode {mode_index}"))?;
+        let code = r.u8()? as i8;
+        if code > 8 {
+            return Err(format!("state has unknown valve stop code {code}"));
+        }
+        let stops = Stops { flapper: code / 3 - 1, spool: code % 3 - 1 };
         let mut physics = Physics::start(values, 0.0).map_err(|e| format!("state holds invalid parameters: {e}"))?;
         for k in 0..N {
             physics.z[k] = r.f64()?;
@@ -603,7 +733,8 @@ impl Physics {
         if !physics.z.iter().all(|x| x.is_finite()) {
             return Err("state holds non-finite values".into());
         }
-        physics.mode = mode;
+        (physics.mode, physics.stops) = (mode, stops);
+        physics.active = physics.systems[mode.index()].with_stops(&physics.params, stops);
         Ok(physics)
     }
 }
