@@ -40,12 +40,14 @@
 //! Rodas4 (Hairer & Wanner, *Solving ODEs II*, IV.7; coefficients of `rodas.f`, METH = 1):
 //! a 6-stage Rosenbrock method of order 4, stiffly accurate and L-stable, with an embedded
 //! order-3 solution for error control. Why implicit: the Jacobian's stiff modes are not rare
-//! corners but ordinary operating states (measured in `tests::jacobian_eigenvalues`):
-//! friction at rest `~ -Fs/(m v_smooth) = -6e4 1/s`, a port in its laminar region at the end
-//! stop or at a pressure near supply `~ -1e5 .. -1e6 1/s`, the end stop `-1000 +- 4500i`. An
-//! explicit method would sit on its stability boundary there (several steps per 0.1 ms);
-//! Rodas4 takes steps set by accuracy only, and one step per call at rest. Order 4 matters at
-//! the 1e-8 tolerance (an order-3 method needs ~3x the steps while moving).
+//! corners but ordinary operating states (eigenvalues measured in `tests::jacobian_eigenvalues`):
+//! at rest the friction tanh gives `-6.0e4 1/s` (`~ -Fs/(m v_smooth)`); pressed on the end stop
+//! `-1.4e5, -6.2e4, -1.6e4` (laminar port near supply, friction); a port in its laminar region
+//! `-6e4`; during an impact the contact mode `-1.07e3 +- 4.4e3i` plus `-2.7e4`; moving at rated
+//! flow only `-1.3e4, -1.9e3, -4.0e2`. An explicit method would sit on its stability boundary
+//! (`|lambda h| < 3.3`: steps of 2..50 us) in most of these; Rodas4 takes steps set by accuracy
+//! only: one step per 0.1 ms call at rest, in steady motion and pressed on a stop. Order 4
+//! keeps the step count low at the 1e-8 tolerance.
 //! The 4x4 Jacobian is a forward difference, `df/dt` too (the only time dependence is
 //! `x_s(t)`); the linear systems use a hand-written 4x4 LU with partial pivoting.
 //! Everything lives on the stack: no allocation in [`advance`].
@@ -159,7 +161,7 @@ const fn info(
 /// (rod < bore, p_cavitation < p_tank) are in [`CylinderParams::validate`].
 pub const CYLINDER_PARAMETERS: &[ParameterInfo] = &[
     info("cylinder.bore", "m", 0.016, Some(0.0), None, true, "Piston (bore) diameter"),
-    info("cylinder.rod", "m", 0.010, Some(0.0), None, false, "Rod diameter (rod on the B side; 0 = double-rod equal areas is not implied: B area = bore area)"),
+    info("cylinder.rod", "m", 0.010, Some(0.0), None, false, "Rod diameter (single rod on the B side; 0 gives equal areas)"),
     info("cylinder.stroke", "m", 0.080, Some(0.0), None, true, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2"),
     info("cylinder.mass", "kg", 5.0, Some(0.0), None, true, "Moving mass of piston, rod and load"),
     info("cylinder.beta", "Pa", 1.0e9, Some(0.0), None, true, "Effective bulk modulus of oil, hoses and walls"),
@@ -441,16 +443,16 @@ mod rodas4 {
         [1.544, 0.0, 0.0, 0.0, 0.0],
         [0.9466785280815826, 0.2557011698983284, 0.0, 0.0, 0.0],
         [3.314825187068521, 2.896124015972201, 0.9986419139977817, 0.0, 0.0],
-        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 0.0],
+        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.687886036105895, 0.0],
         // Stage 6 is evaluated at the embedded solution y_5 + k_5.
-        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950, 1.0],
+        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.687886036105895, 1.0],
     ];
     pub const C: [[f64; 5]; 6] = [
         [0.0; 5],
         [-5.6688, 0.0, 0.0, 0.0, 0.0],
         [-2.430093356833875, -0.2063599157091915, 0.0, 0.0, 0.0],
         [-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0.0, 0.0],
-        [7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160, 0.0],
+        [7.496443313967647, -10.24680431464352, -33.99990352819905, 11.7089089320616, 0.0],
         [8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136, -6.058818238834054],
     ];
 }
@@ -492,6 +494,13 @@ impl IntegratorMemory {
     /// Forget step history (after a state jump or a reset).
     pub fn reset(&mut self) {
         *self = IntegratorMemory::new(self.rtol);
+    }
+    /// `[rtol, h_next, h_accepted, err_accepted]`, for serialising the instance state.
+    pub fn to_array(&self) -> [f64; 4] {
+        [self.rtol, self.h_next, self.h_accepted, self.err_accepted]
+    }
+    pub fn from_array(a: &[f64; 4]) -> IntegratorMemory {
+        IntegratorMemory { rtol: a[0], h_next: a[1], h_accepted: a[2], err_accepted: a[3] }
     }
 }
 
@@ -687,11 +696,12 @@ impl Lu4 {
             }
             a.swap(col, best);
             pivot[col] = best;
-            for row in col + 1..N_STATES {
-                let m = a[row][col] / a[col][col];
-                a[row][col] = m;
-                for c in col + 1..N_STATES {
-                    a[row][c] -= m * a[col][c];
+            let pivot_row = a[col];
+            for row in a.iter_mut().skip(col + 1) {
+                let m = row[col] / pivot_row[col];
+                row[col] = m;
+                for (value, above) in row.iter_mut().zip(pivot_row.iter()).skip(col + 1) {
+                    *value -= m * above;
                 }
             }
         }
@@ -983,6 +993,26 @@ mod tests {
             ];
             assert!(e.iter().all(|e| e.abs() < 1e-5), "interval {interval}: {e:?}");
         }
+    }
+
+    #[test]
+    fn restored_state_and_memory_repeat_the_run_bit_for_bit() {
+        let p = CylinderParams::default();
+        let x_s = |t: f64| 0.2e-3 * (1.0 - (-t / 1e-3).exp());
+        let mut s = equilibrium(&p, P_RATED, 100.0);
+        let mut work = IntegratorMemory::default();
+        simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 100.0), (0.0, 0.005, 1e-3), |_, _| {});
+        let (saved_state, saved_memory) = (s.to_array(), work.to_array());
+        simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 100.0), (0.005, 0.01, 1e-3), |_, _| {});
+        let mut again = CylinderState::from_array(&saved_state);
+        let mut again_work = IntegratorMemory::from_array(&saved_memory);
+        simulate(&p, &mut again, &mut again_work, &x_s, (P_RATED, 100.0), (0.005, 0.01, 1e-3), |_, _| {});
+        assert_eq!(again, s);
+        assert_eq!(again_work, work);
+        // A refused step leaves the state alone.
+        let before = s;
+        assert!(advance(&p, &mut s, f64::NAN, P_RATED, 0.0, |_| 0.0, &mut work).is_err());
+        assert_eq!(s, before);
     }
 
     #[test]
