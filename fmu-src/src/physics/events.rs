@@ -13,22 +13,29 @@ const GUARD_SAMPLES: usize = 16;
 /// apart)? True when it goes from <= 0 to > 0, or when the tangents at both ends meet
 /// above zero (a bump).
 pub(super) fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, passed: u8) -> bool {
-    (0..sys.n_guards).filter(|k| passed & 1 << k == 0).any(|k| {
+    (0..sys.n_guards).any(|k| {
+        if passed & 1 << k != 0 {
+            return false;
+        }
         let g0 = sys.guards[k].dot(z0);
-        let g1 = sys.guards[k].dot(z1);
         if g0 > 0.0 {
             return false;
         }
-        if g1 > 0.0 {
+        if sys.guards[k].dot(z1) > 0.0 {
             return true;
         }
+        // A bump needs a rising start steep enough to reach zero within h.
         let d0 = sys.guard_rates[k].dot(z0);
-        let d1 = sys.guard_rates[k].dot(z1);
-        if d0 > 0.0 && d1 < 0.0 {
-            let t = ((g1 - g0 - d1 * h) / (d0 - d1)).clamp(0.0, h);
-            return g0 + d0 * t > 0.0;
+        if d0 <= 0.0 || g0 + d0 * h <= 0.0 {
+            return false;
         }
-        false
+        let d1 = sys.guard_rates[k].dot(z1);
+        if d1 >= 0.0 {
+            return false;
+        }
+        let g1 = sys.guards[k].dot(z1);
+        let t = ((g1 - g0 - d1 * h) / (d0 - d1)).clamp(0.0, h);
+        g0 + d0 * t > 0.0
     })
 }
 

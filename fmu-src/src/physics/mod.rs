@@ -357,29 +357,40 @@ impl Stops {
     }
 }
 
-/// A few recently used propagators exp(A_mode * h).
+/// How a span is cut into equal sub-steps, with the sub-step propagator exp(A h).
+#[derive(Clone, Copy)]
+struct Propagator {
+    substeps: usize,
+    h: f64,
+    matrix: Mat,
+}
+
+/// A few recently used propagators, keyed by system and span.
 #[derive(Clone, Copy)]
 struct PropagatorCache {
     keys: [(usize, u64); CACHE_SLOTS],
-    values: [Mat; CACHE_SLOTS],
+    values: [Propagator; CACHE_SLOTS],
     next: usize,
 }
 
 impl PropagatorCache {
     fn new() -> Self {
-        PropagatorCache { keys: [(usize::MAX, 0); CACHE_SLOTS], values: [Mat::zeros(); CACHE_SLOTS], next: 0 }
+        let empty = Propagator { substeps: 0, h: 0.0, matrix: Mat::zeros() };
+        PropagatorCache { keys: [(usize::MAX, 0); CACHE_SLOTS], values: [empty; CACHE_SLOTS], next: 0 }
     }
 
-    /// `system` names the (mode, stops) pair; keys hold the bits of h, so equal sub-steps
-    /// (the common case) hit exactly.
-    fn get(&mut self, system: usize, sys: &ModeSystem, h: f64) -> &Mat {
-        let key = (system, h.to_bits());
+    /// `system` names the (mode, stops) pair; keys hold the bits of the span, so equal
+    /// communication steps (the common case) hit exactly.
+    fn get(&mut self, system: usize, sys: &ModeSystem, span: f64) -> &Propagator {
+        let key = (system, span.to_bits());
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
             None => {
+                let substeps = sys.substeps(span, THETA_COARSE);
+                let h = span / substeps as f64;
                 let slot = self.next;
                 self.keys[slot] = key;
-                self.values[slot] = (sys.a * h).exp();
+                self.values[slot] = Propagator { substeps, h, matrix: (sys.a * h).exp() };
                 self.next = (slot + 1) % CACHE_SLOTS;
                 slot
             }
@@ -609,10 +620,11 @@ impl Physics {
     /// Advances from `t_start` by `step` seconds with the inputs in `values` held constant.
     /// On error the state is left as it was.
     pub fn advance(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
-        let saved = (self.z, self.mode, self.stops, self.active, self.digital);
+        let saved = (self.z, self.mode, self.stops, self.digital);
         let result = self.advance_inner(values, t_start, step);
         if result.is_err() {
-            (self.z, self.mode, self.stops, self.active, self.digital) = saved;
+            (self.z, self.mode, self.stops, self.digital) = saved;
+            self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
         }
         result
     }
@@ -676,12 +688,10 @@ impl Physics {
                 z = taylor_propagate(sys, &z, span);
                 break;
             }
-            let n = sys.substeps(span, THETA_COARSE);
-            let h = span / n as f64;
             let key = self.mode.index() + MODES.len() * self.stops.code();
-            let propagator = self.cache.get(key, sys, h);
-            for k in 0..n {
-                let next = propagator * z;
+            let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span);
+            for k in 0..substeps {
+                let next = matrix * z;
                 if may_cross(sys, &z, &next, h, passed) {
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
                         z = at;
