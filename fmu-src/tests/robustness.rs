@@ -28,6 +28,7 @@ both!(
     bad_input_in_step_mode_is_an_error_naming_the_cause,
     bad_parameters_are_refused_before_initialisation,
     huge_steps_return_in_bounded_time,
+    extreme_finite_parameters_return_in_bounded_time,
 );
 
 const H: f64 = 1e-4;
@@ -439,6 +440,27 @@ fn huge_steps_return_in_bounded_time<F: Api>() {
             assert!(status == OK || (status == ERROR && t == 0.0), "{name}: {status:?} at t = {t}");
             assert_eq!(f.step(t, 1e-3), OK, "{}", f.log().dump());
             assert!(f.snapshot().iter().all(|&b| f64::from_bits(b).is_finite()));
+        }
+    }
+}
+
+/// Parameters at the ends of the f64 range (accepted by the ranges, or refused): every set
+/// and the initialisation must return promptly. Runs each case on its own thread and
+/// gives up waiting after 5 s (found by tests/src/bin/fuzz.rs).
+fn extreme_finite_parameters_return_in_bounded_time<F: Api>() {
+    for r in [vr::COIL_R_SENSE, vr::COIL_R, vr::COIL_L, vr::VALVE_A_S, vr::DRIVER_KP, vr::DRIVER_SLEW_RATE] {
+        for v in [f64::MAX, 1e300, 1e-300, -f64::MAX] {
+            let (tx, rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let f = F::create("extreme");
+                let set = f.set(r, v);
+                let init = f.init(None);
+                let _ = tx.send((set, init));
+            });
+            match rx.recv_timeout(Duration::from_secs(5)) {
+                Ok((set, init)) => println!("{} {} = {v:e}: set {set:?}, init {init:?}", F::VERSION, VARIABLES[r].name),
+                Err(_) => panic!("{} = {v:e}: no answer within 5 s (the call hangs)", VARIABLES[r].name),
+            }
         }
     }
 }
