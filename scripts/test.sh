@@ -33,6 +33,10 @@ stage pytest .venv/bin/python -m pytest tests/python -q
 stage cdylib cargo build --release -p ehsv-actuator
 stage bench cargo run --release -p ehsv-tests --bin bench -- --quick
 
+# ---- robustness and conformance (see README "Robustness and conformance"); the fuzz and
+# robustness tests already ran in cargo-test, the importer/state tests in pytest.
+stage valgrind scripts/valgrind.sh
+
 echo
 if ((${#failed[@]})); then
     echo "scripts/test.sh: FAILED stages: ${failed[*]}"
