@@ -7,6 +7,8 @@ demo (cosim-examples/current_step.py) and the pytest suite (tests/python).
   variable name and captures the FMU's log messages (``Ehsv``),
 * a step scenario stepped by hand so the step instant is exact (``run_step``),
 * the settling-time measure (``settling_time``),
+* the paper's driver table and its three-driver run (``PAPER_DRIVERS``,
+  ``compare_drivers``), with the mean over one PWM period (``period_average``),
 * the exact solution of the linear cases (ideal_current and voltage drivers):
   matrix exponential in plain numpy (``linear_step_response``).
 
@@ -18,6 +20,7 @@ from __future__ import annotations
 import atexit
 import json
 import math
+import os
 import shutil
 import sys
 from dataclasses import dataclass, field
@@ -26,7 +29,9 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-FMU_DIR = REPO / "target" / "fmu"
+#: where build-fmu writes the archives; EHSV_FMU_DIR overrides it (e.g. archives built from
+#: a clean checkout of a commit while the working tree is being edited)
+FMU_DIR = Path(os.environ.get("EHSV_FMU_DIR") or REPO / "target" / "fmu")
 VERSIONS = ("fmi2", "fmi3")
 
 
@@ -51,7 +56,11 @@ def missing_fmu_message(version: str) -> str | None:
 # --------------------------------------------------------------------------------------
 
 #: coil driver enumeration (parameter ``driver``)
-DRIVERS = {"ideal_current": 0, "voltage": 1, "opamp_pi": 2}
+DRIVERS = {"ideal_current": 0, "voltage": 1, "opamp_pi": 2, "industrial": 3, "hbridge_pid": 4}
+
+#: drivers whose output switches (PWM): the coil current carries a ripple at f_pwm, so its
+#: figures are taken on the mean over one PWM period (``period_average``)
+PWM_DRIVERS = ("hbridge_pid",)
 
 #: inputs: name -> (unit, start)
 INPUTS = {"i_ref": ("A", 0.0), "V_supply": ("V", 72.0)}
@@ -86,6 +95,16 @@ NOMINAL = {
     "valve.A_s": 1.67742e-5,   # m2      spool end area
     "valve.zeta": 0.4,         # -       first-stage damping ratio
     "valve.f_n": 814.0,        # Hz      first-stage natural frequency
+    "industrial.Kp": 2500.0,        # V/A       industrial linear PI current amplifier (driver 3)
+    "industrial.Ki": 781250.0,      # V/(A s)   Ki/Kp = R/L
+    "industrial.slew_rate": 1.0e6,  # V/s       1 V/us
+    "hbridge.f_pwm": 20000.0,       # Hz        bipolar centre-aligned PWM (driver 4)
+    "hbridge.f_sample": 20000.0,    # Hz        digital PI sampling, one-sample delay
+    "hbridge.Kp": 9000.0,           # V/A
+    "hbridge.Ki": 2812500.0,        # V/(A s)   Ki/Kp = R/L
+    # (hbridge.feedforward, a Boolean, defaults to true)
+    "valve.x_flapper_max": 0.0,     # m         travel limits, 0 = none
+    "valve.x_spool_max": 0.0,       # m
 }
 
 #: steady-state flow gain Q_valve / i_coil = K3*K1/Kw, m3/s per A (0.025268)
@@ -349,6 +368,137 @@ def time_at_rail(t, u, t_step: float, rail: float, tol: float = 0.05) -> float:
     while last + 1 < len(t) and at[last + 1]:
         last += 1
     return float(t[last] - t[first])
+
+
+# --------------------------------------------------------------------------------------
+# Driver comparison (the paper's table: current settling time of a 0 -> 5 mA step)
+# --------------------------------------------------------------------------------------
+
+#: the paper's reference: valve settling with a voltage drive (T_torque), s
+PAPER_T_TORQUE = 10.8e-3
+
+#: tolerance of the paper comparison: the FMU's settling time within +-10 % of the paper's
+PAPER_TOLERANCE = 0.10
+
+
+@dataclass(frozen=True)
+class PaperDriver:
+    """One line of the paper's driver table and the spec row that pins it down."""
+    driver: str          # name in DRIVERS
+    label: str           # the paper's name for it
+    V_supply: float      # V, supply of the spec row
+    paper_ms: float      # the paper's 2 % current settling time, ms
+    paper_pct: float     # the paper's figure as % of T_torque
+    row: int             # spec row
+    band: tuple          # (lo, hi) s: the spec row's band for the 2 % settling time
+
+    @property
+    def code(self) -> int:
+        return DRIVERS[self.driver]
+
+    @property
+    def averaged(self) -> bool:
+        """The settling time is that of the PWM-period mean of i_coil."""
+        return self.driver in PWM_DRIVERS
+
+    @property
+    def paper_band(self) -> tuple:
+        return (self.paper_ms * 1e-3 * (1 - PAPER_TOLERANCE), self.paper_ms * 1e-3 * (1 + PAPER_TOLERANCE))
+
+
+#: the paper's table, fastest first (op-amp < H-bridge < industrial); every step is
+#: i_ref 0 -> 5 mA at t = 0 from rest with nominal parameters
+PAPER_DRIVERS = (
+    PaperDriver("opamp_pi", "proposed op-amp driver", 72.0, 0.25, 2.0, 1, (0.225e-3, 0.275e-3)),
+    PaperDriver("hbridge_pid", "H-bridge topology", 12.0, 2.0, 18.0, 5, (1.7e-3, 2.3e-3)),
+    PaperDriver("industrial", "My-502 industrial driver", 24.0, 5.0, 50.0, 4, (4.5e-3, 5.5e-3)),
+)
+PAPER_STEP = 5e-3      # A, the table's current step
+COMPARE_H = 1e-6       # s, output interval of the comparison runs (50 samples per PWM period)
+COMPARE_T_STOP = 20e-3  # s, four times the slowest settling time
+
+
+def pwm_period(params: dict | None = None) -> float:
+    """PWM period of the H-bridge driver, s (1/hbridge.f_pwm)."""
+    return 1.0 / {**NOMINAL, **(params or {})}["hbridge.f_pwm"]
+
+
+def period_average(t, y, period: float):
+    """Mean of ``y`` over exactly one ``period`` ending at each sample: the integral of
+    the linear interpolation of the samples over [t_k - period, t_k], divided by period
+    (trapezoid rule over n + 1 samples, n = period / grid step; with 1 us samples and a
+    50 us PWM period, 50 intervals). ``t`` must be a uniform grid on which the period is
+    a whole number of steps. Returns (t[n:], mean) -- the first full period ends at t[n].
+    """
+    t = np.asarray(t, float)
+    y = np.asarray(y, float)
+    h = (t[-1] - t[0]) / (len(t) - 1)
+    n = int(round(period / h))
+    if n < 2 or abs(n * h - period) > 1e-9 * period:
+        raise ValueError(f"the period {period:g} s is not a whole number of grid steps {h:g} s")
+    if not np.allclose(np.diff(t), h, rtol=1e-6, atol=0):
+        raise ValueError("period_average needs a uniform time grid")
+    # cumulative trapezoid integral, then differences n samples apart
+    c = np.concatenate(([0.0], np.cumsum((y[1:] + y[:-1]) * 0.5)))
+    return t[n:], (c[n:] - c[:-n]) / n
+
+
+@dataclass
+class DriverResult:
+    """One driver's step response and figures, from ``compare_drivers``."""
+    spec: PaperDriver
+    run: dict            # run_step's record: time and DEFAULT_OUTPUTS
+    t_avg: np.ndarray    # time of the PWM-period means (the run's time for linear drivers)
+    i_avg: np.ndarray    # i_coil, period-averaged for the PWM driver, else the raw samples
+    u_avg: np.ndarray    # u_driver likewise
+    settling: float      # s, 2 % settling time of i_avg around the command, from the step
+    ripple: float        # A, peak-to-peak of raw i_coil over the last PWM period (0 if linear)
+
+    @property
+    def pct_of_t_torque(self) -> float:
+        return 100.0 * self.settling / PAPER_T_TORQUE
+
+
+def driver_step(version: str, spec: PaperDriver, *, h: float = COMPARE_H,
+                t_stop: float = COMPARE_T_STOP, params: dict | None = None) -> DriverResult:
+    """The paper's 0 -> 5 mA step for one driver at its row's supply, with its figures.
+
+    Settling time: last time i_coil (the PWM driver: its mean over one PWM period) is
+    outside +-2 % of the 5 mA step around the command (the PI loops have no steady-state
+    error), measured from the step at t = 0 (settling_time with y_final = command)."""
+    r = run_step(version, spec.driver, PAPER_STEP, h=h, t_stop=t_stop, V_supply=spec.V_supply,
+                 params=params)
+    t = r["time"]
+    if spec.averaged:
+        period = pwm_period(params)
+        t_avg, i_avg = period_average(t, r["i_coil"], period)
+        _, u_avg = period_average(t, r["u_driver"], period)
+        n = int(round(period / h))
+        ripple = float(np.ptp(r["i_coil"][-(n + 1):]))
+    else:
+        t_avg, i_avg, u_avg, ripple = t, r["i_coil"], r["u_driver"], 0.0
+    ts = settling_time(t_avg, i_avg, 0.0, 0.02, y_final=PAPER_STEP, y_initial=0.0)
+    return DriverResult(spec, r, t_avg, i_avg, u_avg, ts, ripple)
+
+
+def compare_drivers(version: str, *, h: float = COMPARE_H, t_stop: float = COMPARE_T_STOP) -> dict[str, DriverResult]:
+    """Runs the three drivers of the paper's table in one go (PAPER_DRIVERS: op-amp at
+    72 V, H-bridge at 12 V, industrial at 24 V; 0 -> 5 mA at t = 0, nominal parameters,
+    outputs every ``h``) and returns {driver name: DriverResult}, fastest first."""
+    return {spec.driver: driver_step(version, spec, h=h, t_stop=t_stop) for spec in PAPER_DRIVERS}
+
+
+def driver_table(results: dict[str, DriverResult]) -> str:
+    """The paper's table beside the FMU's figures, as text."""
+    head = (f"{'driver':<12} {'paper name':<26} {'supply':>6} {'paper ms':>8} {'FMU ms':>8} "
+            f"{'paper %':>7} {'FMU %':>6}  spec band (row)")
+    lines = [head, "-" * len(head)]
+    for name, res in results.items():
+        s = res.spec
+        lines.append(f"{name:<12} {s.label:<26} {s.V_supply:>4.0f} V {s.paper_ms:>8.2f} "
+                     f"{res.settling * 1e3:>8.4f} {s.paper_pct:>6.0f}% {res.pct_of_t_torque:>5.1f}%  "
+                     f"{s.band[0] * 1e3:g}-{s.band[1] * 1e3:g} ms (row {s.row})")
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------------------
