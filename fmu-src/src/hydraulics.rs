@@ -52,6 +52,8 @@
 //! `x_s(t)`); the linear systems use a hand-written 4x4 LU with partial pivoting.
 //! Everything lives on the stack: no allocation in [`advance`].
 
+use crate::variables::{index_of, VARIABLES};
+
 /// Number of states: `[p_A, p_B, x, v]`.
 pub const N_STATES: usize = 4;
 const PA: usize = 0;
@@ -104,117 +106,71 @@ pub struct CylinderParams {
 }
 
 impl Default for CylinderParams {
+    /// The start values of the variable table.
     fn default() -> Self {
-        CylinderParams {
-            bore: 0.016,
-            rod: 0.010,
-            stroke: 0.080,
-            mass: 5.0,
-            beta: 1.0e9,
-            v_dead: 2.0e-6,
-            b_viscous: 200.0,
-            f_coulomb: 20.0,
-            f_static: 30.0,
-            v_stribeck: 0.01,
-            v_friction_smooth: 1.0e-4,
-            k_endstop: 1.0e8,
-            c_endstop: 1.0e4,
-            c_leak: 0.0,
-            c_leak_external: 0.0,
-            k3: 0.664515,
-            dp_rated: 6.8948e6,
-            dp_laminar: 1.0e5,
-            p_tank: 0.0,
-            p_cavitation: -0.9e5,
-            dp_cavitation_band: 5.0e4,
-        }
+        let start = |name: &str| VARIABLES[index_of(name).expect("cylinder parameter in the variable table")].start;
+        CylinderParams::from_lookup(start, start("valve.K3")).expect("table start values are valid")
     }
 }
 
-/// One parameter as the variable table needs it.
-#[derive(Clone, Copy, Debug)]
-pub struct ParameterInfo {
-    pub name: &'static str,
-    pub unit: Option<&'static str>,
-    pub start: f64,
-    pub min: Option<f64>,
-    pub max: Option<f64>,
-    /// `min` itself is not allowed.
-    pub min_exclusive: bool,
-    pub description: &'static str,
-}
-
-const fn info(
-    name: &'static str,
-    unit: &'static str,
-    start: f64,
-    min: Option<f64>,
-    max: Option<f64>,
-    min_exclusive: bool,
-    description: &'static str,
-) -> ParameterInfo {
-    ParameterInfo { name, unit: Some(unit), start, min, max, min_exclusive, description }
-}
-
-/// Parameters of this module for the variable table (`valve.K3` already exists there).
-/// Starts equal [`CylinderParams::default`] (checked by a test). Cross-parameter rules
-/// (rod < bore, p_cavitation < p_tank) are in [`CylinderParams::validate`].
-pub const CYLINDER_PARAMETERS: &[ParameterInfo] = &[
-    info("cylinder.bore", "m", 0.016, Some(0.0), None, true, "Piston (bore) diameter"),
-    info("cylinder.rod", "m", 0.010, Some(0.0), None, false, "Rod diameter (single rod on the B side; 0 gives equal areas)"),
-    info("cylinder.stroke", "m", 0.080, Some(0.0), None, true, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2"),
-    info("cylinder.mass", "kg", 5.0, Some(0.0), None, true, "Moving mass of piston, rod and load"),
-    info("cylinder.beta", "Pa", 1.0e9, Some(0.0), None, true, "Effective bulk modulus of oil, hoses and walls"),
-    info("cylinder.V_dead", "m3", 2.0e-6, Some(0.0), None, true, "Dead volume of each chamber at its end of stroke (ports, hoses)"),
-    info("cylinder.b_viscous", "N.s/m", 200.0, Some(0.0), None, false, "Viscous friction coefficient"),
-    info("cylinder.F_coulomb", "N", 20.0, Some(0.0), None, false, "Coulomb friction force"),
-    info("cylinder.F_static", "N", 30.0, Some(0.0), None, false, "Breakaway (static) friction force: peak of the Stribeck curve"),
-    info("cylinder.v_stribeck", "m/s", 0.01, Some(0.0), None, true, "Stribeck velocity: friction falls from F_static to F_coulomb over this speed"),
-    info("cylinder.v_friction_smooth", "m/s", 1.0e-4, Some(0.0), None, true, "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)"),
-    info("cylinder.k_endstop", "N/m", 1.0e8, Some(0.0), None, true, "End-stop contact stiffness beyond +-stroke/2"),
-    info("cylinder.c_endstop", "N.s/m", 1.0e4, Some(0.0), None, false, "End-stop contact damping (only while penetrating; the contact never pulls)"),
-    info("cylinder.C_leak", "m3/(s.Pa)", 0.0, Some(0.0), None, false, "Internal leakage coefficient across the piston, A to B"),
-    info("cylinder.C_leak_external", "m3/(s.Pa)", 0.0, Some(0.0), None, false, "External leakage coefficient from each chamber to the drain at p_tank"),
-    info("valve.dp_rated", "Pa", 6.8948e6, Some(0.0), None, true, "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop"),
-    info("valve.dp_laminar", "Pa", 1.0e5, Some(0.0), None, true, "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)"),
-    info("hydraulics.p_tank", "Pa", 0.0, Some(-1.01325e5), None, false, "Tank (return) pressure, gauge"),
-    info("hydraulics.p_cavitation", "Pa", -0.9e5, Some(-1.01325e5), None, false, "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it"),
-    info("hydraulics.dp_cavitation_band", "Pa", 5.0e4, Some(0.0), None, true, "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero"),
+/// Table names of the parameters, in the order of [`CylinderParams::values`].
+const PARAMETER_NAMES: [&str; 20] = [
+    "cylinder.bore",
+    "cylinder.rod",
+    "cylinder.stroke",
+    "cylinder.mass",
+    "cylinder.beta",
+    "cylinder.V_dead",
+    "cylinder.b_viscous",
+    "cylinder.F_coulomb",
+    "cylinder.F_static",
+    "cylinder.v_stribeck",
+    "cylinder.v_friction_smooth",
+    "cylinder.k_endstop",
+    "cylinder.c_endstop",
+    "cylinder.C_leak",
+    "cylinder.C_leak_external",
+    "valve.dp_rated",
+    "valve.dp_laminar",
+    "hydraulics.p_tank",
+    "hydraulics.p_cavitation",
+    "hydraulics.dp_cavitation_band",
 ];
 
 impl CylinderParams {
     /// Builds the parameters from named values (e.g. the variable table), then validates them.
     pub fn from_lookup(get: impl Fn(&str) -> f64, k3: f64) -> Result<CylinderParams, String> {
+        let v = PARAMETER_NAMES.map(get);
         let p = CylinderParams {
-            bore: get("cylinder.bore"),
-            rod: get("cylinder.rod"),
-            stroke: get("cylinder.stroke"),
-            mass: get("cylinder.mass"),
-            beta: get("cylinder.beta"),
-            v_dead: get("cylinder.V_dead"),
-            b_viscous: get("cylinder.b_viscous"),
-            f_coulomb: get("cylinder.F_coulomb"),
-            f_static: get("cylinder.F_static"),
-            v_stribeck: get("cylinder.v_stribeck"),
-            v_friction_smooth: get("cylinder.v_friction_smooth"),
-            k_endstop: get("cylinder.k_endstop"),
-            c_endstop: get("cylinder.c_endstop"),
-            c_leak: get("cylinder.C_leak"),
-            c_leak_external: get("cylinder.C_leak_external"),
+            bore: v[0],
+            rod: v[1],
+            stroke: v[2],
+            mass: v[3],
+            beta: v[4],
+            v_dead: v[5],
+            b_viscous: v[6],
+            f_coulomb: v[7],
+            f_static: v[8],
+            v_stribeck: v[9],
+            v_friction_smooth: v[10],
+            k_endstop: v[11],
+            c_endstop: v[12],
+            c_leak: v[13],
+            c_leak_external: v[14],
             k3,
-            dp_rated: get("valve.dp_rated"),
-            dp_laminar: get("valve.dp_laminar"),
-            p_tank: get("hydraulics.p_tank"),
-            p_cavitation: get("hydraulics.p_cavitation"),
-            dp_cavitation_band: get("hydraulics.dp_cavitation_band"),
+            dp_rated: v[15],
+            dp_laminar: v[16],
+            p_tank: v[17],
+            p_cavitation: v[18],
+            dp_cavitation_band: v[19],
         };
         p.validate()?;
         Ok(p)
     }
 
-    /// Single-value ranges (as in [`CYLINDER_PARAMETERS`]) and the rules between parameters.
-    pub fn validate(&self) -> Result<(), String> {
-        let values = [
+    /// Values in the order of `PARAMETER_NAMES`.
+    fn values(&self) -> [f64; 20] {
+        [
             self.bore,
             self.rod,
             self.stroke,
@@ -235,17 +191,13 @@ impl CylinderParams {
             self.p_tank,
             self.p_cavitation,
             self.dp_cavitation_band,
-        ];
-        for (info, &value) in CYLINDER_PARAMETERS.iter().zip(values.iter()) {
-            let below = match info.min {
-                Some(min) if info.min_exclusive => value <= min,
-                Some(min) => value < min,
-                None => false,
-            };
-            let above = matches!(info.max, Some(max) if value > max);
-            if !value.is_finite() || below || above {
-                return Err(format!("{} = {value} rejected: outside its allowed range", info.name));
-            }
+        ]
+    }
+
+    /// Single-value ranges (from the variable table) and the rules between parameters.
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, value) in PARAMETER_NAMES.iter().zip(self.values()) {
+            VARIABLES[index_of(name).expect("cylinder parameter in the variable table")].check(value)?;
         }
         if !(self.k3.is_finite() && self.k3 > 0.0) {
             return Err(format!("valve.K3 = {} rejected: must be positive", self.k3));
@@ -282,7 +234,7 @@ impl CylinderParams {
 }
 
 /// Chamber pressures [Pa, gauge], piston position [m] and velocity [m/s].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct CylinderState {
     pub p_a: f64,
     pub p_b: f64,
@@ -793,13 +745,9 @@ mod tests {
     }
 
     #[test]
-    fn parameter_list_matches_defaults_and_validation_names_the_variable() {
+    fn parameters_come_from_the_table_and_validation_names_the_variable() {
         let defaults = CylinderParams::default();
-        let lookup = |name: &str| CYLINDER_PARAMETERS.iter().find(|p| p.name == name).unwrap().start;
-        assert_eq!(CylinderParams::from_lookup(lookup, 0.664515).unwrap(), defaults);
-        for (i, a) in CYLINDER_PARAMETERS.iter().enumerate() {
-            assert!(CYLINDER_PARAMETERS[i + 1..].iter().all(|b| b.name != a.name));
-        }
+        assert_eq!((defaults.bore, defaults.mass, defaults.k_endstop, defaults.p_cavitation), (0.016, 5.0, 1e8, -0.9e5));
         let bad = CylinderParams { mass: 0.0, ..defaults };
         assert!(bad.validate().unwrap_err().contains("cylinder.mass"));
         let bad = CylinderParams { rod: 0.02, ..defaults };

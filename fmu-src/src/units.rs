@@ -39,6 +39,20 @@ pub static UNITS: &[Unit] = &[
     Unit { name: "V.s/m", base: [1, 1, -2, -1, 0, 0, 0, 0], display: &[] },
     Unit { name: "N.m/A", base: [1, 2, -2, -1, 0, 0, 0, 0], display: &[] },
     Unit { name: "N.m/m", base: [1, 1, -2, 0, 0, 0, 0, 0], display: &[] },
+    Unit { name: "kg", base: [1, 0, 0, 0, 0, 0, 0, 0], display: &[] },
+    Unit { name: "N", base: [1, 1, -2, 0, 0, 0, 0, 0], display: &[] },
+    Unit { name: "Pa", base: [1, -1, -2, 0, 0, 0, 0, 0], display: &[d("bar", 1e-5)] },
+    Unit { name: "m/s", base: [0, 1, -1, 0, 0, 0, 0, 0], display: &[d("mm/s", 1e3)] },
+    Unit { name: "m3", base: [0, 3, 0, 0, 0, 0, 0, 0], display: &[d("cm3", 1e6)] },
+    Unit { name: "N/m", base: [1, 0, -2, 0, 0, 0, 0, 0], display: &[] },
+    Unit { name: "N.s/m", base: [1, 0, -1, 0, 0, 0, 0, 0], display: &[] },
+    Unit { name: "m3/(s.Pa)", base: [-1, 4, 1, 0, 0, 0, 0, 0], display: &[] },
+    Unit { name: "A.s/m3", base: [0, -3, 1, 1, 0, 0, 0, 0], display: &[] },
+    Unit { name: "A/m3", base: [0, -3, 0, 1, 0, 0, 0, 0], display: &[] },
+    Unit { name: "A.s2/m3", base: [0, -3, 2, 1, 0, 0, 0, 0], display: &[] },
+    Unit { name: "A/m", base: [0, -1, 0, 1, 0, 0, 0, 0], display: &[] },
+    Unit { name: "A/(m.s)", base: [0, -1, -1, 1, 0, 0, 0, 0], display: &[] },
+    Unit { name: "A.s/m", base: [0, -1, 1, 1, 0, 0, 0, 0], display: &[] },
 ];
 
 pub fn unit(name: &str) -> Option<&'static Unit> {

@@ -237,9 +237,48 @@ pub mod vr {
     pub const HBRIDGE_FEEDFORWARD: usize = 34;
     pub const VALVE_X_FLAPPER_MAX: usize = 35;
     pub const VALVE_X_SPOOL_MAX: usize = 36;
+    pub const P_SUPPLY: usize = 37;
+    pub const F_EXT: usize = 38;
+    pub const Q_REF: usize = 39;
+    pub const X_REF: usize = 40;
+    pub const Q_A: usize = 41;
+    pub const Q_B: usize = 42;
+    pub const P_A: usize = 43;
+    pub const P_B: usize = 44;
+    pub const X_PISTON: usize = 45;
+    pub const V_PISTON: usize = 46;
+    pub const F_HYDRAULIC: usize = 47;
+    pub const CYLINDER_BORE: usize = 48;
+    pub const CYLINDER_ROD: usize = 49;
+    pub const CYLINDER_STROKE: usize = 50;
+    pub const CYLINDER_MASS: usize = 51;
+    pub const CYLINDER_BETA: usize = 52;
+    pub const CYLINDER_V_DEAD: usize = 53;
+    pub const CYLINDER_B_VISCOUS: usize = 54;
+    pub const CYLINDER_F_COULOMB: usize = 55;
+    pub const CYLINDER_F_STATIC: usize = 56;
+    pub const CYLINDER_V_STRIBECK: usize = 57;
+    pub const CYLINDER_V_FRICTION_SMOOTH: usize = 58;
+    pub const CYLINDER_K_ENDSTOP: usize = 59;
+    pub const CYLINDER_C_ENDSTOP: usize = 60;
+    pub const CYLINDER_C_LEAK: usize = 61;
+    pub const CYLINDER_C_LEAK_EXTERNAL: usize = 62;
+    pub const VALVE_DP_RATED: usize = 63;
+    pub const VALVE_DP_LAMINAR: usize = 64;
+    pub const HYDRAULICS_P_TANK: usize = 65;
+    pub const HYDRAULICS_P_CAVITATION: usize = 66;
+    pub const HYDRAULICS_DP_CAVITATION_BAND: usize = 67;
+    pub const LOOP_F_SAMPLE: usize = 68;
+    pub const LOOP_I_MAX: usize = 69;
+    pub const FLOW_KP: usize = 70;
+    pub const FLOW_KI: usize = 71;
+    pub const FLOW_KD: usize = 72;
+    pub const POSITION_KP: usize = 73;
+    pub const POSITION_KI: usize = 74;
+    pub const POSITION_KD: usize = 75;
 }
 
-pub const N_VARIABLES: usize = 37;
+pub const N_VARIABLES: usize = 76;
 
 pub static VARIABLES: [Variable; N_VARIABLES] = [
     Variable {
@@ -301,9 +340,9 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         display_unit: None,
         start: 0.0,
         min: Some(0.0),
-        max: Some(0.0),
+        max: Some(2.0),
         min_exclusive: false,
-        description: "Outer loop: 0 current (the flow and position loops are not built yet)",
+        description: "Command source: 0 current (i_ref), 1 flow loop (Q_ref), 2 position loop (x_ref)",
     },
     // Driver
     param("driver.Kp", Some("V/A"), 1.6e5, "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
@@ -362,6 +401,51 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
     // Optional valve travel limits (the paper's linear model has none).
     param("valve.x_flapper_max", Some("m"), 0.0, "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
     param("valve.x_spool_max", Some("m"), 0.0, "Spool travel limit, inelastic stop (0: none)").non_negative(),
+    // Cylinder side: inputs and outputs.
+    input("p_supply", "Pa", Some("bar"), 6.8948e6, "Hydraulic supply pressure, gauge (1000 psi: the valve's rated drop, so the no-load flow is K3*x_spool)")
+        .range(Some(0.0), Some(1.0e8)),
+    input("F_ext", "N", None, 0.0, "External force on the rod, positive in the direction of +x (extension)"),
+    input("Q_ref", "m3/s", Some("L/min"), 0.0, "Valve flow command (used when control_mode = flow)"),
+    input("x_ref", "m", Some("mm"), 0.0, "Piston position command, 0 = mid-stroke (used when control_mode = position)"),
+    output("Q_A", "m3/s", Some("L/min"), "Actual flow into chamber A"),
+    output("Q_B", "m3/s", Some("L/min"), "Actual flow out of chamber B"),
+    output("p_A", "Pa", Some("bar"), "Chamber A (piston side) pressure, gauge"),
+    output("p_B", "Pa", Some("bar"), "Chamber B (rod side) pressure, gauge"),
+    output("x_piston", "m", Some("mm"), "Piston position, 0 = mid-stroke, positive = extension"),
+    output("v_piston", "m/s", None, "Piston velocity"),
+    output("F_hydraulic", "N", None, "Hydraulic force p_A*A_A - p_B*A_B"),
+    // Cylinder, load and hydraulic fluid.
+    param("cylinder.bore", Some("m"), 0.016, "Piston (bore) diameter").positive(),
+    param("cylinder.rod", Some("m"), 0.010, "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative(),
+    param("cylinder.stroke", Some("m"), 0.080, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2").positive(),
+    param("cylinder.mass", Some("kg"), 5.0, "Moving mass of piston, rod and load").positive(),
+    param("cylinder.beta", Some("Pa"), 1.0e9, "Effective bulk modulus of oil, hoses and walls").positive(),
+    param("cylinder.V_dead", Some("m3"), 2.0e-6, "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
+    param("cylinder.b_viscous", Some("N.s/m"), 200.0, "Viscous friction coefficient").non_negative(),
+    param("cylinder.F_coulomb", Some("N"), 20.0, "Coulomb friction force").non_negative(),
+    param("cylinder.F_static", Some("N"), 30.0, "Breakaway (static) friction force: peak of the Stribeck curve").non_negative(),
+    param("cylinder.v_stribeck", Some("m/s"), 0.01, "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive(),
+    param("cylinder.v_friction_smooth", Some("m/s"), 1.0e-4, "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive(),
+    param("cylinder.k_endstop", Some("N/m"), 1.0e8, "End-stop contact stiffness beyond +-stroke/2").positive(),
+    param("cylinder.c_endstop", Some("N.s/m"), 1.0e4, "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative(),
+    param("cylinder.C_leak", Some("m3/(s.Pa)"), 0.0, "Internal leakage coefficient across the piston, A to B").non_negative(),
+    param("cylinder.C_leak_external", Some("m3/(s.Pa)"), 0.0, "External leakage coefficient from each chamber to the drain at p_tank").non_negative(),
+    param("valve.dp_rated", Some("Pa"), 6.8948e6, "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").positive(),
+    param("valve.dp_laminar", Some("Pa"), 1.0e5, "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive(),
+    param("hydraulics.p_tank", Some("Pa"), 0.0, "Tank (return) pressure, gauge").range(Some(-1.01325e5), None),
+    param("hydraulics.p_cavitation", Some("Pa"), -0.9e5, "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it").range(Some(-1.01325e5), None),
+    param("hydraulics.dp_cavitation_band", Some("Pa"), 5.0e4, "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero").positive(),
+    // Outer loops (control_mode 1 flow, 2 position): a digital PID producing the current command.
+    param("loop.f_sample", Some("Hz"), 20000.0, "Sampling rate of the outer flow/position PID (the command is held between samples)")
+        .positive()
+        .range(Some(0.0), Some(1.0e6)),
+    param("loop.i_max", Some("A"), 0.01, "Limit of the current command from the outer loops (rated current)").positive(),
+    param("flow.Kp", Some("A.s/m3"), 0.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)"),
+    param("flow.Ki", Some("A/m3"), 0.0, "Flow PID integral gain"),
+    param("flow.Kd", Some("A.s2/m3"), 0.0, "Flow PID derivative gain"),
+    param("position.Kp", Some("A/m"), 0.0, "Position PID proportional gain (on x_ref - x_piston)"),
+    param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain"),
+    param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain"),
 ];
 
 /// Index of the variable with this name.

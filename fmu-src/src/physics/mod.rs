@@ -19,9 +19,12 @@
 
 mod events;
 pub mod hbridge;
+pub mod outer;
 
+use crate::hydraulics::{self, CylinderParams, CylinderState, IntegratorMemory};
 use events::{locate_event, may_cross};
 use hbridge::Digital;
+use outer::{ControlMode, LoopParams, OuterLoop};
 
 use crate::model::Reader;
 use crate::variables::{vr, N_VARIABLES};
@@ -47,6 +50,8 @@ const ONE: usize = 8; // the constant 1, for affine terms
 const THETA_COARSE: f64 = 6.0;
 /// A step that switches mode more often than this is chattering: refuse it.
 const MAX_EVENTS_PER_STEP: u32 = 1000;
+/// Sub-steps per propagation at most (a 1e6 s step stays well under a second).
+const MAX_SUBSTEPS: usize = 1 << 14;
 /// Bounds the work of one doStep with the PWM driver (each instant costs ~0.3 us).
 const MAX_TIME_EVENTS_PER_STEP: u64 = 10_000_000;
 /// Driver guards (4) + flapper stop guards (2) + spool stop guards (2).
@@ -113,6 +118,8 @@ pub struct Params {
     pub v_drop: f64,
     pub slew_rate: f64,
     pub hbridge: hbridge::HBridgeParams,
+    pub loops: LoopParams,
+    pub cylinder: CylinderParams,
     pub inductance: f64,
     pub r_total: f64,
     pub k_backemf: f64,
@@ -139,9 +146,6 @@ impl Params {
             4 => DriverKind::HBridge,
             other => return Err(format!("driver = {other} is not available (0 to 4)")),
         };
-        if v[vr::CONTROL_MODE] != 0.0 {
-            return Err(format!("control_mode = {} is not available (0 = current)", v[vr::CONTROL_MODE]));
-        }
         // Single values were range-checked when set; these are the values as a whole.
         for (i, var) in crate::variables::VARIABLES.iter().enumerate() {
             if var.causality == crate::variables::Causality::Parameter {
@@ -158,6 +162,8 @@ impl Params {
             v_drop: if driver == DriverKind::OpampPi { v[vr::DRIVER_V_DROP] } else { 0.0 },
             slew_rate: pick(vr::DRIVER_SLEW_RATE, vr::INDUSTRIAL_SLEW_RATE),
             hbridge: hbridge::HBridgeParams::from_values(v),
+            loops: LoopParams::from_values(v, v[vr::VALVE_K3] * v[vr::VALVE_K1] / v[vr::VALVE_KW])?,
+            cylinder: CylinderParams::from_lookup(|name| v[crate::variables::index_of(name).unwrap_or(0)], v[vr::VALVE_K3])?,
             inductance: v[vr::COIL_L],
             r_total: v[vr::COIL_R] + v[vr::COIL_R_SENSE],
             k_backemf: v[vr::COIL_K_B],
@@ -218,7 +224,7 @@ impl ModeSystem {
     /// A driver mode with the valve free of its travel stops.
     fn new(p: &Params, mode: Mode) -> ModeSystem {
         let a = dynamics(p, mode);
-        let radius = a.complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max);
+        let radius = spectral_radius(&a);
         let mut sys = ModeSystem { a, guards: [Vector::zeros(); MAX_GUARDS], guard_rates: [Vector::zeros(); MAX_GUARDS], n_guards: 0, radius };
         for g in mode_guards(p, mode, &a) {
             sys.push_guard(g);
@@ -276,8 +282,10 @@ impl ModeSystem {
         sys
     }
 
+    /// Sub-steps keeping |lambda|*h below `theta`; capped so that a huge step stays bounded
+    /// in time (the propagation itself is exact at any length, only event search coarsens).
     fn substeps(&self, span: f64, theta: f64) -> usize {
-        ((span * self.radius / theta).ceil() as usize).clamp(1, 1 << 20)
+        ((span * self.radius / theta).ceil() as usize).clamp(1, MAX_SUBSTEPS)
     }
 }
 
@@ -417,7 +425,34 @@ pub struct Physics {
     active: ModeSystem,
     /// Discrete state of the H-bridge's digital loop and PWM.
     digital: Digital,
+    outer: OuterLoop,
+    cylinder: CylinderState,
+    cylinder_memory: IntegratorMemory,
+    /// Supply pressure of the last step (the port flows depend on it).
+    p_supply: f64,
     cache: PropagatorCache,
+}
+
+/// Inputs held over one step.
+#[derive(Clone, Copy)]
+struct Inputs {
+    i_ref: f64,
+    rail: f64,
+    p_supply: f64,
+    f_ext: f64,
+    /// Reference of the outer loop (Q_ref or x_ref).
+    reference: f64,
+}
+
+impl Inputs {
+    fn new(p: &Params, v: &[f64; N_VARIABLES]) -> Inputs {
+        let reference = match p.loops.mode {
+            ControlMode::Flow => v[vr::Q_REF],
+            ControlMode::Position => v[vr::X_REF],
+            ControlMode::Current => 0.0,
+        };
+        Inputs { i_ref: v[vr::I_REF], rail: p.rail(v[vr::V_SUPPLY]), p_supply: v[vr::P_SUPPLY], f_ext: v[vr::F_EXT], reference }
+    }
 }
 
 impl Default for Physics {
@@ -432,6 +467,13 @@ impl Physics {
     pub fn start(values: &[f64; N_VARIABLES], start_time: f64) -> Result<Physics, String> {
         let params = Params::from_values(values)?;
         let systems = MODES.map(|m| ModeSystem::new(&params, m));
+        if !systems.iter().all(|s| s.a.iter().all(|x| x.is_finite()) && s.radius.is_finite()) {
+            return Err(format!(
+                "the parameters give a model too stiff to represent (coefficients like (coil.R + coil.R_sense)/coil.L = {:e} 1/s, \
+                 valve.f_n, coil.K_b/coil.L overflow); use physically sized values",
+                params.r_total / params.inductance
+            ));
+        }
         let mut physics = Physics {
             params,
             systems,
@@ -440,15 +482,31 @@ impl Physics {
             stops: Stops::default(),
             active: systems[Mode::Linear.index()],
             digital: Digital::default(),
+            outer: OuterLoop::default(),
+            cylinder: CylinderState::default(),
+            cylinder_memory: IntegratorMemory::default(),
+            p_supply: values[vr::P_SUPPLY],
             cache: PropagatorCache::new(),
         };
-        physics.equilibrium(values[vr::I_REF], values[vr::V_SUPPLY], start_time);
+        let inputs = Inputs::new(&params, values);
+        physics.outer = OuterLoop::at_start(&params.loops, inputs.reference, start_time);
+        physics.cylinder = hydraulics::equilibrium(&params.cylinder, inputs.p_supply, inputs.f_ext);
+        let i_cmd = physics.current_command(&inputs);
+        physics.equilibrium(i_cmd, inputs.rail, start_time);
         Ok(physics)
     }
 
-    fn equilibrium(&mut self, i_ref: f64, v_supply: f64, start_time: f64) {
+    /// The coil current command: the input, or the outer loop's output.
+    fn current_command(&self, inputs: &Inputs) -> f64 {
+        if self.params.loops.mode == ControlMode::Current {
+            inputs.i_ref
+        } else {
+            self.outer.command
+        }
+    }
+
+    fn equilibrium(&mut self, i_ref: f64, vmax: f64, start_time: f64) {
         let p = self.params;
-        let vmax = p.rail(v_supply);
         let mut z = Vector::zeros();
         z[IREF] = i_ref;
         z[VMAX] = vmax;
@@ -534,6 +592,14 @@ impl Physics {
         values[vr::X_FLAPPER] = z[XF];
         values[vr::X_SPOOL] = z[XS];
         values[vr::Q_VALVE] = self.params.k3 * z[XS];
+        let c = hydraulics::outputs(&self.params.cylinder, &self.cylinder, z[XS], self.p_supply);
+        values[vr::Q_A] = c.q_a;
+        values[vr::Q_B] = c.q_b;
+        values[vr::P_A] = c.p_a;
+        values[vr::P_B] = c.p_b;
+        values[vr::X_PISTON] = c.x_piston;
+        values[vr::V_PISTON] = c.v_piston;
+        values[vr::F_HYDRAULIC] = c.f_hydraulic;
     }
 
     fn saturated(&self) -> bool {
@@ -620,10 +686,10 @@ impl Physics {
     /// Advances from `t_start` by `step` seconds with the inputs in `values` held constant.
     /// On error the state is left as it was.
     pub fn advance(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
-        let saved = (self.z, self.mode, self.stops, self.digital);
+        let saved = (self.z, self.mode, self.stops, self.digital, self.outer, self.cylinder, self.cylinder_memory, self.p_supply);
         let result = self.advance_inner(values, t_start, step);
         if result.is_err() {
-            (self.z, self.mode, self.stops, self.digital) = saved;
+            (self.z, self.mode, self.stops, self.digital, self.outer, self.cylinder, self.cylinder_memory, self.p_supply) = saved;
             self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
         }
         result
@@ -631,41 +697,45 @@ impl Physics {
 
     fn advance_inner(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
         let mut events = StepEvents::default();
-        let i_ref = values[vr::I_REF];
-        let rail = self.params.rail(values[vr::V_SUPPLY]);
-        // A state that ended the last step is consistent with its mode; only new inputs
-        // (or a restored state) need the mode chosen again.
-        if self.z[IREF] != i_ref || self.z[VMAX] != rail {
-            let mut z = self.z;
-            self.apply_inputs(&mut z, i_ref, rail);
-            let before = self.mode;
-            self.settle(&mut z);
-            count_switch(&mut events, before, self.mode);
-            self.z = z;
-        }
+        let inputs = Inputs::new(&self.params, values);
+        self.p_supply = inputs.p_supply;
+        self.follow_command(&inputs, &mut events);
         let t_end = t_start + step;
-        if self.digital.events_until(&self.params.hbridge, t_end) > MAX_TIME_EVENTS_PER_STEP {
+        let p = self.params;
+        let time_events = self.digital.events_until(&p.hbridge, t_end) + self.outer.events_until(&p.loops, t_end);
+        if time_events > MAX_TIME_EVENTS_PER_STEP {
             return Err(format!(
                 "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
             ));
         }
         // Time events a hair past the step end (rounding of t_start + step) belong to it.
-        let slack = 1e-9 * step.min(self.params.hbridge.period());
+        let slack = 1e-9 * step.min(p.hbridge.period()).min(1.0 / p.loops.f_sample);
         let mut t = t_start;
         loop {
-            let t_event = self.digital.next_event(&self.params.hbridge);
+            let t_bridge = self.digital.next_event(&p.hbridge);
+            let t_loop = self.outer.next_event(&p.loops);
+            let t_event = t_bridge.min(t_loop);
             let fire = t_event <= t_end + slack;
             let segment_end = if fire { t_event.min(t_end) } else { t_end };
             if segment_end > t {
-                self.flow(segment_end - t, &mut events)?;
+                self.flow(segment_end - t, &inputs, &mut events)?;
                 t = segment_end;
             }
             if !fire {
                 break;
             }
-            let p = self.params;
-            self.digital.fire(&p.hbridge, self.z[I], i_ref, p.r_total, self.z[VMAX]);
-            self.z[U] = self.digital.output(self.z[VMAX]);
+            if t_loop <= t_bridge {
+                // The outer loop samples first, so a bridge sample at the same instant sees its command.
+                let measured = match p.loops.mode {
+                    ControlMode::Flow => p.k3 * self.z[XS],
+                    _ => self.cylinder.x,
+                };
+                self.outer.sample(&p.loops, inputs.reference, measured);
+                self.follow_command(&inputs, &mut events);
+            } else {
+                self.digital.fire(&p.hbridge, self.z[I], self.z[IREF], p.r_total, self.z[VMAX]);
+                self.z[U] = self.digital.output(self.z[VMAX]);
+            }
         }
         if !self.z.iter().all(|x| x.is_finite()) {
             return Err("the state became non-finite; step refused".into());
@@ -673,8 +743,51 @@ impl Physics {
         Ok(events)
     }
 
+    /// Takes a new current command or rail into the state. A state that ended the last step
+    /// is consistent with its mode; only a new command or rail (or a restored state) needs
+    /// the mode chosen again.
+    fn follow_command(&mut self, inputs: &Inputs, events: &mut StepEvents) {
+        let i_cmd = self.current_command(inputs);
+        if self.z[IREF] != i_cmd || self.z[VMAX] != inputs.rail {
+            let mut z = self.z;
+            self.apply_inputs(&mut z, i_cmd, inputs.rail);
+            let before = self.mode;
+            self.settle(&mut z);
+            count_switch(events, before, self.mode);
+            self.z = z;
+        }
+    }
+
+    /// Advances the cylinder over a piece of `h` seconds in which the valve went from `z0`
+    /// to `z1`: the spool path is the quintic Hermite interpolant of its exact position,
+    /// velocity and acceleration at both ends. A cylinder at rest behind a still spool is
+    /// left as it is (its derivatives are below rounding over the piece).
+    fn drive_cylinder(
+        sys: &ModeSystem,
+        params: &CylinderParams,
+        cylinder: &mut CylinderState,
+        memory: &mut IntegratorMemory,
+        (z0, z1, h): (&Vector, &Vector, f64),
+        inputs: &Inputs,
+    ) -> Result<(), String> {
+        let a = &sys.a;
+        let (az0, az1) = (a * z0, a * z1);
+        let ends = [[z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())], [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())]];
+        let still_spool = ends[0][1] == 0.0 && ends[1][1] == 0.0 && z0[XS] == z1[XS]
+            || (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9);
+        if still_spool {
+            let f = hydraulics::derivatives(params, cylinder, z0[XS], inputs.p_supply, inputs.f_ext);
+            if f.iter().zip(hydraulics::STATE_SCALE.iter()).all(|(d, scale)| (d * h).abs() <= 1e-13 * scale) {
+                return Ok(());
+            }
+        }
+        let spool = |tau: f64| quintic_hermite(h, &ends[0], &ends[1], tau);
+        hydraulics::advance(params, cylinder, h, inputs.p_supply, inputs.f_ext, spool, memory)?;
+        Ok(())
+    }
+
     /// Continuous evolution over `span` seconds with state events (driver mode changes).
-    fn flow(&mut self, span_total: f64, events: &mut StepEvents) -> Result<(), String> {
+    fn flow(&mut self, span_total: f64, inputs: &Inputs, events: &mut StepEvents) -> Result<(), String> {
         let mut z = self.z;
         let mut done = 0.0;
         let mut switches = 0;
@@ -685,7 +798,9 @@ impl Physics {
             let sys = &self.active;
             if self.mode == Mode::Switched {
                 // Between PWM edges: short, irregular spans; a Taylor series beats exp().
-                z = taylor_propagate(sys, &z, span);
+                let next = taylor_propagate(sys, &z, span);
+                Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, (&z, &next, span), inputs)?;
+                z = next;
                 break;
             }
             let key = self.mode.index() + MODES.len() * self.stops.code();
@@ -694,6 +809,7 @@ impl Physics {
                 let next = matrix * z;
                 if may_cross(sys, &z, &next, h, passed) {
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
+                        Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, (&z, &at, tau), inputs)?;
                         z = at;
                         done += k as f64 * h + tau;
                         let before = self.mode;
@@ -709,6 +825,7 @@ impl Physics {
                         continue 'modes;
                     }
                 }
+                Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, (&z, &next, h), inputs)?;
                 z = next;
             }
             break;
@@ -725,6 +842,10 @@ impl Physics {
             out.extend_from_slice(&x.to_le_bytes());
         }
         self.digital.write_bytes(out);
+        self.outer.write_bytes(out);
+        for x in self.cylinder.to_array().iter().chain(self.cylinder_memory.to_array().iter()) {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
     }
 
     pub fn read_bytes(values: &[f64; N_VARIABLES], r: &mut Reader) -> Result<Physics, String> {
@@ -740,6 +861,20 @@ impl Physics {
             physics.z[k] = r.f64()?;
         }
         physics.digital = Digital::read_bytes(r)?;
+        physics.outer = OuterLoop::read_bytes(r)?;
+        let mut cylinder = [0.0; hydraulics::N_STATES];
+        for x in cylinder.iter_mut() {
+            *x = r.f64()?;
+        }
+        let mut memory = [0.0; 4];
+        for x in memory.iter_mut() {
+            *x = r.f64()?;
+        }
+        if !cylinder.iter().chain(memory.iter()).all(|x| x.is_finite()) {
+            return Err("state holds non-finite cylinder values".into());
+        }
+        physics.cylinder = CylinderState::from_array(&cylinder);
+        physics.cylinder_memory = IntegratorMemory::from_array(&memory);
         if !physics.z.iter().all(|x| x.is_finite()) {
             return Err("state holds non-finite values".into());
         }
@@ -781,4 +916,31 @@ fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
         z = sum;
     }
     z
+}
+
+/// Quintic Hermite interpolant on [0, h] through (value, rate, acceleration) at both ends.
+fn quintic_hermite(h: f64, start: &[f64; 3], end: &[f64; 3], tau: f64) -> f64 {
+    let s = tau / h;
+    let (s2, s3) = (s * s, s * s * s);
+    let (s4, s5) = (s3 * s, s3 * s2);
+    let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
+    let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
+    let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
+    let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
+    let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
+    let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
+    start[0] * h00 + h * start[1] * h10 + h * h * start[2] * h20 + end[0] * h01 + h * end[1] * h11 + h * h * end[2] * h21
+}
+
+/// Largest |eigenvalue| of `a`, from a Schur decomposition with bounded iterations; a
+/// matrix it cannot decompose (absurdly scaled parameters) gets its infinity norm, an
+/// upper bound. Never loops unbounded.
+fn spectral_radius(a: &Mat) -> f64 {
+    if !a.iter().all(|x| x.is_finite()) {
+        return f64::INFINITY;
+    }
+    match nalgebra::linalg::Schur::try_new(*a, f64::EPSILON, 500) {
+        Some(schur) => schur.complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max),
+        None => a.row_iter().map(|r| r.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max),
+    }
 }

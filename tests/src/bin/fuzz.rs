@@ -8,8 +8,6 @@
 //!     EHSV_FUZZ_SECONDS=600 scripts/fuzz.sh                              # the same, longer
 //!
 //! The test suite runs it for 3 s with a fixed seed (`cargo test -p ehsv-tests --bin fuzz`).
-//! EHSV_FUZZ_AVOID_KNOWN_HANG=1 keeps parameter values within 1e-12..1e12 in magnitude
-//! (see `set_values`: a known hang in the physics for extreme parameters).
 
 use std::ffi::{c_char, c_int, c_void, CString};
 use std::ptr::{null, null_mut};
@@ -100,7 +98,6 @@ struct Fuzzer {
     /// Not an instance or state: the FMU must recognise it by its magic number.
     junk: Box<[u64; 64]>,
     calls: u64,
-    avoid_known_hang: bool,
 }
 
 const CALLBACKS: fmi2CallbackFunctions = fmi2CallbackFunctions {
@@ -116,8 +113,8 @@ fn check(status: Status) {
 }
 
 impl Fuzzer {
-    fn new(seed: u64, avoid_known_hang: bool) -> Self {
-        Fuzzer { rng: Rng(seed | 1), instances: vec![], states: vec![], bytes: vec![], junk: Box::new([0; 64]), calls: 0, avoid_known_hang }
+    fn new(seed: u64) -> Self {
+        Fuzzer { rng: Rng(seed | 1), instances: vec![], states: vec![], bytes: vec![], junk: Box::new([0; 64]), calls: 0 }
     }
 
     /// An instance of the wanted version (mostly), or another, NULL, or junk.
@@ -357,14 +354,7 @@ impl Fuzzer {
 
     fn set_values(&mut self, fmi3: bool) {
         let i = self.instance(fmi3);
-        let (n, vrs, mut vals, null_arrays) = self.arrays();
-        if self.avoid_known_hang {
-            // KNOWN ISSUE (reported to the physics owner): a parameter of extreme size (coil.R_sense = f64::MAX,
-            // coil.K_b = 8.6e89, coil.L = 2.2e-308, ...) hangs
-            // Physics::start (eigenvalues of a matrix with infinite entries). Only with
-            // EHSV_FUZZ_AVOID_KNOWN_HANG=1, so the rest can be fuzzed until it is fixed.
-            vals.iter_mut().filter(|v| v.abs() > 1e12 || (**v != 0.0 && v.abs() < 1e-12)).for_each(|v| *v = v.signum());
-        }
+        let (n, vrs, vals, null_arrays) = self.arrays();
         let vr = if null_arrays && self.rng.chance(2) { null() } else { vrs.as_ptr() };
         let nv = if fmi3 && self.rng.chance(5) { self.rng.below(5) } else { n };
         let ints: Vec<i64> = vals.iter().map(|v| *v as i64 % 5).collect();
@@ -483,7 +473,7 @@ impl Fuzzer {
 const DEFAULT_SEED: u64 = 0x5EED_E45F;
 
 /// Runs for `seconds` with a watchdog; returns the number of FMI calls made.
-fn fuzz(seconds: f64, seed: u64, avoid_known_hang: bool) -> u64 {
+fn fuzz(seconds: f64, seed: u64) -> u64 {
     static PROGRESS: AtomicU64 = AtomicU64::new(0);
     static DONE: AtomicU64 = AtomicU64::new(0);
     DONE.store(0, Relaxed);
@@ -502,7 +492,7 @@ fn fuzz(seconds: f64, seed: u64, avoid_known_hang: bool) -> u64 {
             }
         }
     });
-    let mut f = Fuzzer::new(seed, avoid_known_hang);
+    let mut f = Fuzzer::new(seed);
     let end = Instant::now() + Duration::from_secs_f64(seconds);
     while Instant::now() < end {
         for _ in 0..256 {
@@ -522,8 +512,7 @@ fn main() {
     let seconds: f64 = args.next().and_then(|s| s.parse().ok()).or(env_seconds).unwrap_or(60.0);
     let seed: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(DEFAULT_SEED);
     let start = Instant::now();
-    let avoid = std::env::var("EHSV_FUZZ_AVOID_KNOWN_HANG").is_ok_and(|v| v == "1");
-    let calls = fuzz(seconds, seed, avoid);
+    let calls = fuzz(seconds, seed);
     println!(
         "fuzz: {calls} FMI calls in {:.1} s (seed {seed}), {} log lines, 0 crashes, 0 hangs, 0 panics across the boundary",
         start.elapsed().as_secs_f64(),
@@ -537,9 +526,7 @@ mod tests {
     #[test]
     fn three_seconds_of_random_fmi_calls() {
         // The known physics hang has its own failing test (fmu-src/tests/robustness.rs,
-        // extreme_finite_parameters_return_in_bounded_time); avoided here so the rest stays
-        // fuzzed. Set to false once that test passes.
-        let calls = super::fuzz(3.0, 20240521, true);
+        let calls = super::fuzz(3.0, 20240521);
         println!("fuzz: {calls} FMI calls in 3 s, no crash, hang or panic");
         assert!(calls > 10_000, "only {calls} calls");
     }
