@@ -66,8 +66,18 @@ pub(super) fn locate_event(sys: &ModeSystem, z0: &Vector, h: f64, passed: u8) ->
                 first = Some((tau, g));
             }
         }
-        if let Some((tau, g)) = first {
-            return Some((j as f64 * w + tau, g, horner_vec(&terms, tau)));
+        if let Some((mut tau, g)) = first {
+            // The state handed on must be past the crossing as the mode logic evaluates it
+            // (on the vector, not the polynomial), or the mode may not change and the guard
+            // would be passed over: nudge forward past the rounding.
+            let mut at = horner_vec(&terms, tau);
+            let mut nudge = f64::EPSILON * w;
+            while sys.guards[g].dot(&at) <= 0.0 && tau < w {
+                tau = (tau + nudge).min(w);
+                at = horner_vec(&terms, tau);
+                nudge *= 2.0;
+            }
+            return Some((j as f64 * w + tau, g, at));
         }
         start = horner_vec(&terms, w);
     }

@@ -535,8 +535,14 @@ impl Physics {
     /// Chooses the stops and driver mode consistent with `z`, puts `z` on them and makes
     /// their system the active one. Returns whether anything changed.
     fn settle(&mut self, z: &mut Vector) -> bool {
-        let stops = self.consistent_stops(z);
         let p = &self.params;
+        // An inelastic impact: at its limit the flapper loses any outward velocity.
+        let reach = p.x_flapper_max * (1.0 - 1e-12);
+        if p.x_flapper_max > 0.0 && (z[XF] >= reach && z[VF] > 0.0 || z[XF] <= -reach && z[VF] < 0.0) {
+            z[XF] = z[XF].clamp(-p.x_flapper_max, p.x_flapper_max);
+            z[VF] = 0.0;
+        }
+        let stops = self.consistent_stops(z);
         if stops.flapper != 0 {
             z[XF] = stops.flapper as f64 * p.x_flapper_max;
             z[VF] = 0.0;
@@ -796,17 +802,20 @@ impl Physics {
         'modes: while done < span_total {
             let span = span_total - done;
             let sys = &self.active;
-            if self.mode == Mode::Switched {
-                // Between PWM edges: short, irregular spans; a Taylor series beats exp().
-                let next = taylor_propagate(sys, &z, span);
-                Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, (&z, &next, span), inputs)?;
-                z = next;
-                break;
-            }
-            let key = self.mode.index() + MODES.len() * self.stops.code();
-            let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span);
+            // Between PWM edges the spans are short and irregular: a Taylor series beats
+            // exp() there. Otherwise equal sub-steps with a cached propagator.
+            let (substeps, h, matrix) = if self.mode == Mode::Switched {
+                (1, span, None)
+            } else {
+                let key = self.mode.index() + MODES.len() * self.stops.code();
+                let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span);
+                (substeps, h, Some(matrix))
+            };
             for k in 0..substeps {
-                let next = matrix * z;
+                let next = match matrix {
+                    Some(matrix) => matrix * z,
+                    None => taylor_propagate(sys, &z, h),
+                };
                 if may_cross(sys, &z, &next, h, passed) {
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
                         Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, (&z, &at, tau), inputs)?;
