@@ -440,10 +440,16 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         .positive()
         .range(Some(0.0), Some(1.0e6)),
     param("loop.i_max", Some("A"), 0.01, "Limit of the current command from the outer loops (rated current)").positive(),
-    param("flow.Kp", Some("A.s/m3"), 0.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)"),
-    param("flow.Ki", Some("A/m3"), 0.0, "Flow PID integral gain"),
+    // Flow defaults: 2.1 ms (72 V) and 5.8 ms (10 V, where the coil current can only rise
+    // with L/R whatever the gains) for a 2e-4 m3/s step, the paper's Fig. 10/11 comparison.
+    param("flow.Kp", Some("A.s/m3"), 40.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)"),
+    param("flow.Ki", Some("A/m3"), 1.0e4, "Flow PID integral gain"),
     param("flow.Kd", Some("A.s2/m3"), 0.0, "Flow PID derivative gain"),
-    param("position.Kp", Some("A/m"), 0.0, "Position PID proportional gain (on x_ref - x_piston)"),
+    // Position defaults: P only (1 mA per mm). The valve-controlled cylinder integrates flow,
+    // and a critically centred valve holds a constant load with zero flow only at null spool,
+    // so P alone has zero steady-state error; Ki is for leakage or a valve offset. Derivative
+    // action excites the hydraulic resonance at these gains.
+    param("position.Kp", Some("A/m"), 1.0, "Position PID proportional gain (on x_ref - x_piston)"),
     param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain"),
     param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain"),
 ];
