@@ -7,7 +7,11 @@ Scenario: opamp_pi driver (default), V_supply 72 V, i_ref 0 -> 5 mA at t = 1 ms,
 * libcosimpy 0.0.6 (libcosim through its C API; FMI 2.0 only: libcosim's FMI library
   loads FMI 1.0/2.0 FMUs), the command set with an override manipulator,
 * an fmu-manipulation-toolbox container (fmucontainer CLI) wrapping the archive, as an
-  FMI 2.0 and as an FMI 3.0 container, simulated with fmpy.simulate_fmu.
+  FMI 2.0 and as an FMI 3.0 container. The FMI 3.0 one runs in fmpy.simulate_fmu; the
+  FMI 2.0 one is stepped by hand with a logger that records the raw format string,
+  because the toolbox 2.0 container logs "%s" messages whose argument is sometimes a
+  dangling pointer, and fmpy's native proxy formats it and crashes the process (seen in
+  container_configure -> logger_message; our FMU is not on that stack).
 """
 import shutil
 import subprocess
@@ -113,7 +117,50 @@ def containers(fmu, tmp_path_factory):
     return built
 
 
+def step_fmi2_by_hand(path):
+    """The scenario through FMU2Slave with a fixed-argument logger (no varargs formatting)."""
+    import ctypes
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+    md = read_model_description(str(path))
+    refs = {v.name: v.valueReference for v in md.modelVariables}
+    raw_logger = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)(
+        lambda env, name, status, category, message: None)
+    keep = []  # buffers handed to the FMU live as long as the run
+
+    def allocate(n, size):
+        buf = ctypes.create_string_buffer(max(n * size, 1))
+        keep.append(buf)
+        return ctypes.addressof(buf)
+
+    callbacks = fmi2CallbackFunctions()
+    callbacks.logger = ctypes.cast(raw_logger, fmi2CallbackLoggerTYPE)
+    callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(allocate)
+    callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(lambda p: None)
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="container")
+    fmu.instantiate(callbacks=callbacks)
+    fmu.setupExperiment(startTime=0.0, stopTime=T_STOP)
+    fmu.enterInitializationMode()
+    fmu.setReal([refs["i_ref"]], [0.0])
+    fmu.exitInitializationMode()
+    out = [refs[o] for o in OUTPUTS]
+    rows = [fmu.getReal(out)]
+    for k in range(N):
+        fmu.setReal([refs["i_ref"]], [I_STEP if k * H >= T_STEP - 1e-12 else 0.0])
+        fmu.doStep(currentCommunicationPoint=k * H, communicationStepSize=H)
+        rows.append(fmu.getReal(out))
+    fmu.terminate()
+    fmu.freeInstance()
+    # The container's own "Solver configure...." line comes with status Error on every
+    # healthy run, so the agreement of the numbers, not the log status, is the check.
+    table = np.array(rows)
+    return {o: table[:, j] for j, o in enumerate(OUTPUTS)}
+
+
 @pytest.mark.parametrize("container_fmi", ["2", "3"])
 def test_fmu_manipulation_toolbox_container(version, containers, container_fmi):
-    assert_agree(f"container FMI {container_fmi}.0 around {version}", reference(version),
-                 simulate(containers[container_fmi]))
+    path = containers[container_fmi]
+    result = step_fmi2_by_hand(path) if container_fmi == "2" else simulate(path)
+    assert_agree(f"container FMI {container_fmi}.0 around {version}", reference(version), result)
