@@ -428,6 +428,8 @@ pub struct Physics {
     outer: OuterLoop,
     cylinder: CylinderState,
     cylinder_memory: IntegratorMemory,
+    /// Where the cylinder was last found at rest (see `drive_cylinder`); not part of the state.
+    cylinder_rest: Option<[u64; 3]>,
     /// Supply pressure of the last step (the port flows depend on it).
     p_supply: f64,
     cache: PropagatorCache,
@@ -485,6 +487,7 @@ impl Physics {
             outer: OuterLoop::default(),
             cylinder: CylinderState::default(),
             cylinder_memory: IntegratorMemory::default(),
+            cylinder_rest: None,
             p_supply: values[vr::P_SUPPLY],
             cache: PropagatorCache::new(),
         };
@@ -697,6 +700,7 @@ impl Physics {
         if result.is_err() {
             (self.z, self.mode, self.stops, self.digital, self.outer, self.cylinder, self.cylinder_memory, self.p_supply) = saved;
             self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
+            self.cylinder_rest = None;
         }
         result
     }
@@ -767,26 +771,33 @@ impl Physics {
     /// Advances the cylinder over a piece of `h` seconds in which the valve went from `z0`
     /// to `z1`: the spool path is the quintic Hermite interpolant of its exact position,
     /// velocity and acceleration at both ends. A cylinder at rest behind a still spool is
-    /// left as it is (its derivatives are below rounding over the piece).
+    /// left as it is (its derivatives are below rounding over the piece); `rest` remembers
+    /// the (spool, supply, load) bits at which that was last verified, a pure cache.
+    #[allow(clippy::too_many_arguments)]
     fn drive_cylinder(
         sys: &ModeSystem,
         params: &CylinderParams,
         cylinder: &mut CylinderState,
         memory: &mut IntegratorMemory,
+        rest: &mut Option<[u64; 3]>,
         (z0, z1, h): (&Vector, &Vector, f64),
         inputs: &Inputs,
     ) -> Result<(), String> {
-        let a = &sys.a;
-        let (az0, az1) = (a * z0, a * z1);
-        let ends = [[z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())], [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())]];
-        let still_spool = ends[0][1] == 0.0 && ends[1][1] == 0.0 && z0[XS] == z1[XS]
-            || (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9);
-        if still_spool {
+        if (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9) {
+            let key = [z0[XS].to_bits(), inputs.p_supply.to_bits(), inputs.f_ext.to_bits()];
+            if *rest == Some(key) {
+                return Ok(());
+            }
             let f = hydraulics::derivatives(params, cylinder, z0[XS], inputs.p_supply, inputs.f_ext);
             if f.iter().zip(hydraulics::STATE_SCALE.iter()).all(|(d, scale)| (d * h).abs() <= 1e-13 * scale) {
+                *rest = Some(key);
                 return Ok(());
             }
         }
+        *rest = None;
+        let a = &sys.a;
+        let (az0, az1) = (a * z0, a * z1);
+        let ends = [[z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())], [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())]];
         let spool = |tau: f64| quintic_hermite(h, &ends[0], &ends[1], tau);
         hydraulics::advance(params, cylinder, h, inputs.p_supply, inputs.f_ext, spool, memory)?;
         Ok(())
@@ -818,7 +829,7 @@ impl Physics {
                 };
                 if may_cross(sys, &z, &next, h, passed) {
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
-                        Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, (&z, &at, tau), inputs)?;
+                        Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, &mut self.cylinder_rest, (&z, &at, tau), inputs)?;
                         z = at;
                         done += k as f64 * h + tau;
                         let before = self.mode;
@@ -834,7 +845,7 @@ impl Physics {
                         continue 'modes;
                     }
                 }
-                Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, (&z, &next, h), inputs)?;
+                Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, &mut self.cylinder_rest, (&z, &next, h), inputs)?;
                 z = next;
             }
             break;
