@@ -9,6 +9,12 @@ demo (cosim-examples/current_step.py) and the pytest suite (tests/python).
 * the settling-time measure (``settling_time``),
 * the paper's driver table and its three-driver run (``PAPER_DRIVERS``,
   ``compare_drivers``), with the mean over one PWM period (``period_average``),
+* the cylinder and the outer loops: a scenario with any inputs changed at one instant
+  (``run_scenario``), the paper's flow-loop comparison at 72 V and 10 V (``PAPER_FLOW``,
+  ``flow_step``, ``compare_flow_supplies``, ``flow_table``), the cylinder geometry
+  (``CYLINDER``), chamber A's volume balance (``volume_balance``), the spring-mass
+  end-stop penetration (``impact_estimate``) and an independent RK4 integration of the
+  cylinder equations (``cylinder_reference``),
 * the exact solution of the linear cases (ideal_current and voltage drivers):
   matrix exponential in plain numpy (``linear_step_response``).
 
