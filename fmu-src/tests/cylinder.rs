@@ -1,8 +1,10 @@
 //! The cylinder side and the outer loops through the Model API: the paper's flow-loop
 //! figures (rows 8, 9, 11), volume balance, end stops, the position loop and cavitation.
 
-use ehsv_actuator::model::Model;
-use ehsv_actuator::variables::{index_of, vr};
+mod scenario;
+
+use ehsv_actuator::variables::vr;
+use scenario::{first_output, model, run, settling_time};
 use std::f64::consts::PI;
 
 const AREA_A: f64 = PI / 4.0 * 0.016 * 0.016;
@@ -11,39 +13,10 @@ const STROKE: f64 = 0.08;
 const BETA: f64 = 1.0e9;
 const V_DEAD: f64 = 2.0e-6;
 
-fn model(settings: &[(&str, f64)]) -> Model {
-    let mut m = Model::new();
-    for (name, value) in settings {
-        m.set(index_of(name).unwrap_or_else(|| panic!("{name}")), *value).unwrap();
-    }
-    m.initialize().unwrap();
-    m
-}
-
-/// Steps for `duration` at `h`; returns (time, values of `outputs`) after every step.
-fn run(m: &mut Model, duration: f64, h: f64, outputs: &[usize]) -> Vec<(f64, Vec<f64>)> {
-    let n = (duration / h).round() as usize;
-    (0..n)
-        .map(|_| {
-            m.do_step(m.time(), h).unwrap();
-            (m.time(), outputs.iter().map(|&o| m.get(o).unwrap()).collect())
-        })
-        .collect()
-}
-
-/// Last time outside +-band*step of the final value, from the step at t0.
-fn settling_time(trace: &[(f64, f64)], t0: f64, step: f64, final_value: f64, band: f64) -> f64 {
-    match trace.iter().rposition(|&(_, y)| (y - final_value).abs() > band * step) {
-        Some(k) => trace[k + 1].0 - t0,
-        None => 0.0,
-    }
-}
-
 fn flow_step_settling(v_supply: f64) -> f64 {
     let mut m = model(&[("control_mode", 1.0), ("V_supply", v_supply)]);
     m.set(vr::Q_REF, 2e-4).unwrap();
-    let trace: Vec<(f64, f64)> = run(&mut m, 30e-3, 1e-6, &[vr::Q_VALVE]).into_iter().map(|(t, y)| (t, y[0])).collect();
-    settling_time(&trace, 0.0, 2e-4, 2e-4, 0.05)
+    settling_time(&first_output(run(&mut m, 30e-3, 1e-6, &[vr::Q_VALVE])), 2e-4, 2e-4, 0.05)
 }
 
 #[test]
@@ -70,12 +43,7 @@ fn row11_steady_flow_moves_the_piston_at_q_over_area_and_volume_balances() {
     assert!(x < STROKE / 2.0 - 1e-3, "still clear of the stop: {x}");
     assert!((v - q_a / AREA_A).abs() <= 0.01 * v.abs(), "v {v} vs Q_A/A_A {}", q_a / AREA_A);
     // Trapezoidal integral of Q_A against displaced plus compressed volume of chamber A.
-    let mut inflow = 0.0;
-    let mut previous = m.get(vr::Q_A).unwrap() * 0.0;
-    for (_, y) in &trace {
-        inflow += 0.5 * (previous + y[0]) * h;
-        previous = y[0];
-    }
+    let inflow: f64 = trace.windows(2).map(|w| 0.5 * (w[0].1[0] + w[1].1[0]) * (w[1].0 - w[0].0)).sum();
     let volume = V_DEAD + AREA_A * (x + STROKE / 2.0);
     let stored = AREA_A * (x - start.0) + volume / BETA * (p_a - start.1);
     println!("inflow {inflow:e} m3, displaced + compressed {stored:e} m3");
@@ -102,8 +70,8 @@ fn position_step(f_ext: f64) -> (f64, f64) {
     let mut m = model(&[("control_mode", 2.0), ("F_ext", f_ext)]);
     m.set(vr::X_REF, 10e-3).unwrap();
     let trace = run(&mut m, 0.3, 1e-4, &[vr::X_PISTON]);
-    let settle = trace.iter().rposition(|s| (s.1[0] - 10e-3).abs() > 0.02 * 10e-3).map_or(0.0, |k| trace[k + 1].0);
-    (settle, trace.last().unwrap().1[0] - 10e-3)
+    let error = trace.last().unwrap().1[0] - 10e-3;
+    (settling_time(&first_output(trace), 10e-3, 10e-3, 0.02), error)
 }
 
 #[test]

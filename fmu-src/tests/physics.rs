@@ -1,42 +1,15 @@
 //! Physics checks through the Model API (the same path the C API takes): the paper's
 //! figures for the current loop and the valve, and independence of the step size.
 
-use ehsv_actuator::model::Model;
-use ehsv_actuator::variables::{index_of, vr};
+mod scenario;
 
-fn model(settings: &[(&str, f64)]) -> Model {
-    let mut m = Model::new();
-    for (name, value) in settings {
-        m.set(index_of(name).unwrap_or_else(|| panic!("{name}")), *value).unwrap();
-    }
-    m.initialize().unwrap();
-    m
-}
-
-/// Steps `m` for `duration` with steps `h`, returning (time, outputs) at every point.
-fn run(m: &mut Model, duration: f64, h: f64, outputs: &[usize]) -> Vec<(f64, Vec<f64>)> {
-    let n = (duration / h).round() as usize;
-    let mut trace = vec![(m.time(), outputs.iter().map(|&o| m.get(o).unwrap()).collect())];
-    for _ in 0..n {
-        m.do_step(m.time(), h).unwrap();
-        trace.push((m.time(), outputs.iter().map(|&o| m.get(o).unwrap()).collect()));
-    }
-    trace
-}
-
-/// Last time the signal is outside +-band*|final - initial| of the final value.
-fn settling_time(trace: &[(f64, f64)], band: f64) -> f64 {
-    let (t0, y0) = trace[0];
-    let y_final = trace.last().unwrap().1;
-    let tol = band * (y_final - y0).abs();
-    let last_out = trace.iter().rposition(|&(_, y)| (y - y_final).abs() > tol).unwrap();
-    trace[last_out + 1].0 - t0
-}
+use scenario::{first_output, model, run, settling_to_end as settling_time};
+use ehsv_actuator::variables::vr;
 
 fn current_step(i_step: f64, driver: f64, output: usize, duration: f64, h: f64) -> Vec<(f64, f64)> {
     let mut m = model(&[("driver", driver)]);
     m.set(vr::I_REF, i_step).unwrap();
-    run(&mut m, duration, h, &[output]).into_iter().map(|(t, y)| (t, y[0])).collect()
+    first_output(run(&mut m, duration, h, &[output]))
 }
 
 #[test]
@@ -153,7 +126,7 @@ fn period_average(trace: &[(f64, f64)], window: usize) -> Vec<(f64, f64)> {
 fn supply_step(driver: f64, v_supply: f64, duration: f64, h: f64) -> Vec<(f64, f64)> {
     let mut m = model(&[("driver", driver), ("V_supply", v_supply)]);
     m.set(vr::I_REF, 5e-3).unwrap();
-    run(&mut m, duration, h, &[vr::I_COIL]).into_iter().map(|(t, y)| (t, y[0])).collect()
+    first_output(run(&mut m, duration, h, &[vr::I_COIL]))
 }
 
 #[test]
