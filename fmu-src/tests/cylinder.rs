@@ -97,3 +97,27 @@ fn pressures_never_fall_below_the_cavitation_floor() {
     assert!(p_min >= floor - 1.0, "{p_min}");
     assert!(p_min < floor + 1e5, "the run really approaches the floor: {p_min}");
 }
+
+#[test]
+fn cylinder_does_not_depend_on_the_communication_step() {
+    // Events land at arbitrary instants inside steps, so pieces of any length (down to
+    // ~1e-20 s) drive the cylinder; none may make a moving piston look at rest.
+    let outputs = [vr::X_PISTON, vr::V_PISTON, vr::P_A, vr::P_B];
+    let traces: Vec<_> = [1e-6, 1e-5, 1e-4]
+        .iter()
+        .map(|&h| {
+            let mut m = model(&[("control_mode", 1.0)]);
+            m.set(vr::Q_REF, 2e-5).unwrap();
+            run(&mut m, 0.05, h, &outputs)
+        })
+        .collect();
+    let scales = [1e-2, 0.1, 1e6, 1e6];
+    for (trace, stride) in traces[1..].iter().zip([10, 100]) {
+        for (k, (t, y)) in trace.iter().enumerate() {
+            let fine = &traces[0][k * stride].1;
+            for o in 0..4 {
+                assert!((y[o] - fine[o]).abs() <= 1e-6 * scales[o], "t {t} output {o}: {} vs {}", y[o], fine[o]);
+            }
+        }
+    }
+}

@@ -50,6 +50,10 @@ const ONE: usize = 8; // the constant 1, for affine terms
 const THETA_COARSE: f64 = 6.0;
 /// A step that switches mode more often than this is chattering: refuse it.
 const MAX_EVENTS_PER_STEP: u32 = 1000;
+/// Pieces this short (events right at a piece start) take an Euler step in the cylinder [s].
+const TINY_PIECE: f64 = 1e-10;
+/// A cylinder counts as at rest when it would drift less than 1e-10 of its scale in this time [s].
+const REST_HORIZON: f64 = 1.0;
 /// Sub-steps per propagation at most (a 1e6 s step stays well under a second).
 const MAX_SUBSTEPS: usize = 1 << 14;
 /// Bounds the work of one doStep with the PWM driver (each instant costs ~0.3 us).
@@ -771,7 +775,7 @@ impl Physics {
     /// Advances the cylinder over a piece of `h` seconds in which the valve went from `z0`
     /// to `z1`: the spool path is the quintic Hermite interpolant of its exact position,
     /// velocity and acceleration at both ends. A cylinder at rest behind a still spool is
-    /// left as it is (its derivatives are below rounding over the piece); `rest` remembers
+    /// left as it is; `rest` remembers
     /// the (spool, supply, load) bits at which that was last verified, a pure cache.
     #[allow(clippy::too_many_arguments)]
     fn drive_cylinder(
@@ -788,13 +792,25 @@ impl Physics {
             if *rest == Some(key) {
                 return Ok(());
             }
+            // At rest means an equilibrium, whatever the piece length: drifting less than
+            // 1e-10 of its scale in a second (a short piece must not make motion look still).
             let f = hydraulics::derivatives(params, cylinder, z0[XS], inputs.p_supply, inputs.f_ext);
-            if f.iter().zip(hydraulics::STATE_SCALE.iter()).all(|(d, scale)| (d * h).abs() <= 1e-13 * scale) {
+            if f.iter().zip(hydraulics::STATE_SCALE.iter()).all(|(d, scale)| d.abs() * REST_HORIZON <= 1e-10 * scale) {
                 *rest = Some(key);
                 return Ok(());
             }
         }
         *rest = None;
+        if h <= TINY_PIECE {
+            // Far below every cylinder time constant (|lambda| h < 2e-5): one Euler step.
+            let f = hydraulics::derivatives(params, cylinder, 0.5 * (z0[XS] + z1[XS]), inputs.p_supply, inputs.f_ext);
+            let mut y = cylinder.to_array();
+            for (y, d) in y.iter_mut().zip(f) {
+                *y += h * d;
+            }
+            *cylinder = CylinderState::from_array(&y);
+            return Ok(());
+        }
         let a = &sys.a;
         let (az0, az1) = (a * z0, a * z1);
         let ends = [[z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())], [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())]];
