@@ -10,3 +10,5 @@ cd "$ROOT"
 scripts/setup-venv.sh
 cargo run --release -p build-fmu
 .venv/bin/python cosim-examples/current_step.py "$@"
+# Every figure of the paper the FMU reproduces (rows 1-11), through fmpy on both archives.
+.venv/bin/python cosim-examples/figures.py
