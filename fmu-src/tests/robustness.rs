@@ -35,7 +35,7 @@ const H: f64 = 1e-4;
 
 /// i_ref as a +-10 mA square wave (period 50 steps): the op-amp driver hits its rails.
 fn i_ref_at(k: usize) -> f64 {
-    if (k / 25) % 2 == 0 { 0.01 } else { -0.01 }
+    if (k / 25).is_multiple_of(2) { 0.01 } else { -0.01 }
 }
 
 /// Steps `n` times from step index `k0`, returning every variable (as bits) after each step.

@@ -589,14 +589,6 @@ impl Physics {
         Stops { flapper: side(z[XF], p.x_flapper_max, flapper_accel), spool: side(z[XS], p.x_spool_max, z[XF]) }
     }
 
-    pub fn params(&self) -> &Params {
-        &self.params
-    }
-
-    pub fn mode(&self) -> Mode {
-        self.mode
-    }
-
     pub fn write_outputs(&self, values: &mut [f64; N_VARIABLES]) {
         let z = &self.z;
         values[vr::I_COIL] = z[I];
