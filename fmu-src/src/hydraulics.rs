@@ -48,8 +48,14 @@
 //! (`|lambda h| < 3.3`: steps of 2..50 us) in most of these; Rodas4 takes steps set by accuracy
 //! only: one step per 0.1 ms call at rest, in steady motion and pressed on a stop. Order 4
 //! keeps the step count low at the 1e-8 tolerance.
-//! The 4x4 Jacobian is a forward difference, `df/dt` too (the only time dependence is
-//! `x_s(t)`); the linear systems use a hand-written 4x4 LU with partial pivoting.
+//! The 4x4 Jacobian and `df/dt = df/dx_s x_s'` are analytic (`linearise`, checked against
+//! differences in `tests::analytic_jacobian_matches_finite_differences`); the linear systems
+//! use a hand-written 4x4 LU with partial pivoting. A step that the call boundary cuts to at
+//! most half the controller's size first tries Rodas3 (Sandu et al. 1997; 4 stages, 2 model
+//! evaluations after the linearisation) and keeps it only if its own embedded estimate passes
+//! the same tolerance. Steps are cut to land on the end-stop contact switches (x reaching
+//! `+-S/2`, the contact force crossing zero), predicted from the Taylor polynomial that the
+//! linearisation gives, instead of rejecting their way across the jump in `v'`.
 //! Everything lives on the stack: no allocation in [`advance`].
 
 use crate::variables::{index_of, VARIABLES};
@@ -610,6 +616,8 @@ pub struct Stats {
     /// error estimate failed (followed by Rodas4 on the same step; not in `rejected`).
     pub cheap: u32,
     pub cheap_failed: u32,
+    /// Accepted steps cut short to land on an end-stop contact switch (included in `accepted`).
+    pub landings: u32,
     /// Largest amount a pressure was lifted back to the cavitation floor after a step [Pa].
     pub floor_clamp: f64,
 }
@@ -667,26 +675,53 @@ pub fn advance_with_rate(
     let mut tau = 0.0;
     let mut step = if work.h_next > 0.0 { work.h_next } else { INITIAL_STEP };
     let mut rejected_last = false;
+    // The linearisation at (tau, y), kept across rejected attempts from the same point.
+    let mut lin: Option<Linearisation> = None;
+    // Consecutive steps cut to a contact switch; bounded so a switch the state cannot be
+    // moved across (rounding) falls back to plain error control.
+    let mut landings = 0;
     loop {
         if stats.accepted + stats.rejected >= MAX_STEPS_PER_CALL {
             return Err(format!("hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {h} s"));
         }
         // The last step lands exactly on h; remember the untruncated size for the next call.
         let wanted = step;
-        let last = tau + step * 1.0001 >= h;
+        let mut last = tau + step * 1.0001 >= h;
         if last {
             step = h - tau;
+        }
+        let here = match lin {
+            Some(ref l) => l,
+            None => lin.insert(model.linearise(tau, &y, &mut stats)),
+        };
+        // Step onto the next end-stop contact switch instead of across it.
+        let mut landing = false;
+        if landings < MAX_LANDINGS {
+            if let Some(t_switch) = next_contact_switch(params, &y, here, step) {
+                let t_land = if t_switch <= 1e-3 * wanted {
+                    // Close: the Taylor prediction is exact to far below this margin.
+                    t_switch * (1.0 + 1e-6)
+                } else {
+                    // Far: land just short; the next step, from very close, lands on it.
+                    t_switch * (1.0 - 1e-4)
+                };
+                let t_land = t_land.max(1e-12 * h);
+                if t_land < step {
+                    step = t_land;
+                    last = false;
+                    landing = true;
+                }
+            }
         }
         if step <= 1e-14 * h.max(1e-6) {
             return Err(format!("hydraulics: step size underflow at {tau} s into a step of {h} s"));
         }
-        let lin = model.linearise(tau, &y, &mut stats);
         // A step the call boundary cut to at most half of what Rodas4's controller wants is
         // smooth at this size: try the cheaper Rodas3 under the same tolerance first and keep
         // its result only if its own error estimate passes; else Rodas4 from the same
         // linearisation. The controller only ever learns from Rodas4 steps.
         if last && step * 2.0 <= wanted {
-            let (y3, err3) = rosenbrock_step(&RODAS3, &model, &lin, (tau, &y, step), work.rtol, &mut stats)?;
+            let (y3, err3) = rosenbrock_step(&RODAS3, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
             if err3 <= 1.0 {
                 stats.accepted += 1;
                 stats.cheap += 1;
@@ -697,9 +732,22 @@ pub fn advance_with_rate(
             }
             stats.cheap_failed += 1;
         }
-        let (y_new, err) = rosenbrock_step(&RODAS4, &model, &lin, (tau, &y, step), work.rtol, &mut stats)?;
+        let (y_new, err) = rosenbrock_step(&RODAS4, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
         if err <= 1.0 {
             stats.accepted += 1;
+            lin = None;
+            y = y_new;
+            clamp_to_floor(params, &mut y, &mut stats);
+            tau += step;
+            if landing {
+                // A step cut short by a switch says nothing about the step size past it:
+                // continue with what the controller wanted before.
+                stats.landings += 1;
+                landings += 1;
+                step = wanted.min(h);
+                continue;
+            }
+            landings = 0;
             let mut factor = (err.powf(0.25) / SAFETY).clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR);
             // Gustafsson: also use the trend of the error between accepted steps.
             if work.h_accepted > 0.0 {
@@ -708,9 +756,6 @@ pub fn advance_with_rate(
             }
             work.h_accepted = step;
             work.err_accepted = err.max(1e-2);
-            y = y_new;
-            clamp_to_floor(params, &mut y, &mut stats);
-            tau += step;
             let mut next = step / factor;
             if rejected_last {
                 next = next.min(step);
@@ -733,6 +778,62 @@ pub fn advance_with_rate(
     }
     *state = CylinderState::from_array(&y);
     Ok(stats)
+}
+
+/// Consecutive steps [`advance_with_rate`] cuts to a contact switch before it gives up on it.
+const MAX_LANDINGS: u32 = 4;
+
+/// Time from `y` to the first end-stop contact switch within `(0, span]`, from the Taylor
+/// polynomial of the switching function (`x'' = f_V`, `x''' = (J f + f_t)_V` from the
+/// linearisation). Switches: `x` reaching `+-stroke/2` from outside the stop (the contact
+/// force jumps in by `c |v|`), and inside a stop the contact force `k d + c d'` crossing zero
+/// (separation or re-engagement: a kink). Leaving a stop is smooth (the force is already 0).
+fn next_contact_switch(params: &CylinderParams, y: &Vec4, lin: &Linearisation, span: f64) -> Option<f64> {
+    let half = 0.5 * params.stroke;
+    let (x, v, a) = (y[X], y[V], lin.f0[V]);
+    let jerk = (0..N_STATES).map(|j| lin.jac[V][j] * lin.f0[j]).sum::<f64>() + lin.f_t[V];
+    let (k, c) = (params.k_endstop, params.c_endstop);
+    // Taylor coefficients [g, dg, d2g, d3g] of the switching function, positive inside the
+    // stop / in contact. For the contact force the third derivative is not available from
+    // the linearisation: that polynomial is quadratic.
+    let g = if x > half {
+        let s = k * (x - half) + c * v;
+        [s, k * v + c * a, k * a + c * jerk, 0.0]
+    } else if x < -half {
+        let s = k * (-half - x) - c * v;
+        [s, -k * v - c * a, -k * a - c * jerk, 0.0]
+    } else if x >= 0.0 {
+        [x - half, v, a, jerk]
+    } else {
+        [-half - x, -v, -a, -jerk]
+    };
+    let poly = |t: f64| g[0] + t * (g[1] + t * (0.5 * g[2] + t * g[3] / 6.0));
+    let slope = |t: f64| g[1] + t * (g[2] + t * 0.5 * g[3]);
+    let inside = g[0] > 0.0;
+    let crossed = |t: f64| (poly(t) > 0.0) != inside;
+    if !crossed(span) {
+        // A double crossing within the span (touch and leave) is not looked for.
+        return None;
+    }
+    // The crossing lies in [lo, hi]; Newton, safeguarded by bisection.
+    let (mut lo, mut hi) = (0.0, span);
+    let mut t = if g[1] != 0.0 { -g[0] / g[1] } else { 0.5 * span };
+    for _ in 0..60 {
+        if !(t > lo && t < hi) {
+            t = 0.5 * (lo + hi);
+        }
+        if crossed(t) {
+            hi = t;
+        } else {
+            lo = t;
+        }
+        if hi - lo <= 1e-12 * hi {
+            break;
+        }
+        let d = slope(t);
+        t = if d != 0.0 { t - poly(t) / d } else { 0.5 * (lo + hi) };
+    }
+    Some(hi)
 }
 
 /// Lifts rounding-size undershoot of the cavitation floor back to it (recorded in `stats`).
@@ -915,6 +1016,7 @@ mod tests {
             total.jacobian_evaluations += s.jacobian_evaluations;
             total.cheap += s.cheap;
             total.cheap_failed += s.cheap_failed;
+            total.landings += s.landings;
             total.floor_clamp = total.floor_clamp.max(s.floor_clamp);
             most_steps = most_steps.max(s.accepted + s.rejected);
             observe(t + interval, state);
@@ -1304,7 +1406,8 @@ mod tests {
     fn default_tolerance_tracks_a_tight_reference() {
         let p = CylinderParams::default();
         let sine = |t: f64| 0.3e-3 * (2.0 * std::f64::consts::PI * 10.0 * t).sin();
-        let cases: [(&str, &dyn Fn(f64) -> f64, f64, f64); 4] = [
+        type Case<'a> = (&'a str, &'a dyn Fn(f64) -> f64, f64, f64);
+        let cases: [Case; 4] = [
             ("rated flow into the + stop", &|_| X_S_RATED, 0.0, 0.08),
             ("0.2 mm into the + stop, pressing", &|_| 0.2e-3, 0.0, 0.12),
             ("overrunning load, cavitating, - stop", &|_| -0.5e-3, -6000.0, 0.05),
@@ -1331,6 +1434,29 @@ mod tests {
             );
             assert!(worst < 1e-5, "{name}: {worst}");
         }
+    }
+
+    /// The calls in which the piston reaches the + stop (0.2 mm spool, 10 us calls, three
+    /// bounces) step onto the contact instant: 38, 28, 39 internal steps (accepted + rejected)
+    /// without the location (`MAX_LANDINGS = 0`), 27, 7, 28 with it.
+    #[test]
+    fn contact_instants_are_stepped_onto() {
+        let p = CylinderParams::default();
+        let mut s = equilibrium(&p, P_RATED, 0.0);
+        let mut work = IntegratorMemory::default();
+        let (mut entries, mut landings, mut most) = (0, 0, 0);
+        for n in 0..60_000 {
+            let before = s.x;
+            let stats = advance(&p, &mut s, 1e-5, P_RATED, 0.0, |_| 0.2e-3, &mut work).unwrap();
+            if before <= p.stroke / 2.0 && s.x > p.stroke / 2.0 {
+                entries += 1;
+                landings += stats.landings;
+                most = most.max(stats.accepted + stats.rejected);
+                println!("entry in call {n}: {} steps ({} rejected, {} landings)", stats.accepted, stats.rejected, stats.landings);
+            }
+        }
+        assert!(entries >= 2 && landings >= entries, "{entries} entries, {landings} landings");
+        assert!(most <= 30, "{most} steps in an entry call");
     }
 
     #[test]
