@@ -622,6 +622,44 @@ pub struct Stats {
     pub floor_clamp: f64,
 }
 
+/// The spool path over one call: the quintic Hermite interpolant through position, rate
+/// and acceleration at both ends of `[0, h]` (the physics core knows them exactly).
+#[derive(Clone, Copy, Debug)]
+pub struct SpoolPath {
+    pub h: f64,
+    pub start: [f64; 3],
+    pub end: [f64; 3],
+}
+
+impl SpoolPath {
+    pub fn position(&self, tau: f64) -> f64 {
+        let (h, a, b) = (self.h, &self.start, &self.end);
+        let s = tau / h;
+        let (s2, s3) = (s * s, s * s * s);
+        let (s4, s5) = (s3 * s, s3 * s2);
+        let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
+        let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
+        let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
+        let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
+        let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
+        let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
+        a[0] * h00 + h * a[1] * h10 + h * h * a[2] * h20 + b[0] * h01 + h * b[1] * h11 + h * h * b[2] * h21
+    }
+
+    /// d/dtau of [`SpoolPath::position`].
+    pub fn rate(&self, tau: f64) -> f64 {
+        let (h, a, b) = (self.h, &self.start, &self.end);
+        let s = tau / h;
+        let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
+        let d00 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4;
+        let d10 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
+        let d20 = s - 4.5 * s2 + 6.0 * s3 - 2.5 * s4;
+        let d11 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
+        let d21 = 1.5 * s2 - 4.0 * s3 + 2.5 * s4;
+        (a[0] - b[0]) * d00 / h + a[1] * d10 + h * a[2] * d20 + b[1] * d11 + h * b[2] * d21
+    }
+}
+
 /// Advances the state by `h` seconds; `x_s(tau)` is the spool position at `tau` in `[0, h]`.
 /// Its rate (for `df/dt`) is taken by differencing `x_s` alone (no extra model evaluation);
 /// [`advance_with_rate`] takes the exact rate instead. On error the state is left as it was.
@@ -1361,42 +1399,17 @@ mod tests {
         }
     }
 
-    /// `physics::quintic_hermite` (copied) and the rate the physics core can pass to
-    /// [`advance_with_rate`] (the patch proposed for physics/mod.rs), checked against each other.
     #[test]
-    fn quintic_hermite_rate_is_the_derivative_of_the_path() {
-        fn quintic_hermite(h: f64, start: &[f64; 3], end: &[f64; 3], tau: f64) -> f64 {
-            let s = tau / h;
-            let (s2, s3) = (s * s, s * s * s);
-            let (s4, s5) = (s3 * s, s3 * s2);
-            let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
-            let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
-            let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
-            let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
-            let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
-            let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
-            start[0] * h00 + h * start[1] * h10 + h * h * start[2] * h20 + end[0] * h01 + h * end[1] * h11 + h * h * end[2] * h21
+    fn spool_path_rate_is_the_derivative_of_its_position() {
+        let path = SpoolPath { h: 1e-4, start: [1.0e-4, 0.3, -2.0e3], end: [1.3e-4, 0.1, 5.0e3] };
+        for tau in [0.0, 0.1, 0.5, 0.77, 1.0].map(|s| s * path.h) {
+            let d = 1e-6 * path.h;
+            let fd = (path.position(tau + d) - path.position(tau - d)) / (2.0 * d);
+            assert!((path.rate(tau) - fd).abs() < 1e-8 * 0.3, "tau {tau}: {} vs {fd}", path.rate(tau));
         }
-        fn quintic_hermite_rate(h: f64, start: &[f64; 3], end: &[f64; 3], tau: f64) -> f64 {
-            let s = tau / h;
-            let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
-            let d00 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4;
-            let d10 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
-            let d20 = s - 4.5 * s2 + 6.0 * s3 - 2.5 * s4;
-            let d11 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
-            let d21 = 1.5 * s2 - 4.0 * s3 + 2.5 * s4;
-            (start[0] - end[0]) * d00 / h + start[1] * d10 + h * start[2] * d20 + end[1] * d11 + h * end[2] * d21
-        }
-        let h = 1e-4;
-        let (start, end) = ([1.0e-4, 0.3, -2.0e3], [1.3e-4, 0.1, 5.0e3]);
-        for tau in [0.0, 0.1 * h, 0.5 * h, 0.77 * h, h] {
-            let d = 1e-6 * h;
-            let fd = (quintic_hermite(h, &start, &end, tau + d) - quintic_hermite(h, &start, &end, tau - d)) / (2.0 * d);
-            let rate = quintic_hermite_rate(h, &start, &end, tau);
-            assert!((rate - fd).abs() < 1e-8 * 0.3, "tau {tau}: {rate} vs {fd}");
-        }
-        assert!((quintic_hermite_rate(h, &start, &end, 0.0) - start[1]).abs() < 1e-15);
-        assert!((quintic_hermite_rate(h, &start, &end, h) - end[1]).abs() < 1e-14);
+        assert!((path.position(0.0) - path.start[0]).abs() < 1e-18 && (path.position(path.h) - path.end[0]).abs() < 1e-18);
+        assert!((path.rate(0.0) - path.start[1]).abs() < 1e-15);
+        assert!((path.rate(path.h) - path.end[1]).abs() < 1e-14);
     }
 
     /// Every 0.1 ms call at the default tolerance (Rodas3 where it passes, located contact

@@ -21,7 +21,7 @@ mod events;
 pub mod hbridge;
 pub mod outer;
 
-use crate::hydraulics::{self, CylinderParams, CylinderState, IntegratorMemory};
+use crate::hydraulics::{self, CylinderParams, CylinderState, IntegratorMemory, SpoolPath};
 use events::{locate_event, may_cross};
 use hbridge::Digital;
 use outer::{ControlMode, LoopParams, OuterLoop};
@@ -805,9 +805,13 @@ impl Physics {
         }
         let a = &sys.a;
         let (az0, az1) = (a * z0, a * z1);
-        let ends = [[z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())], [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())]];
-        let spool = |tau: f64| quintic_hermite(h, &ends[0], &ends[1], tau);
-        hydraulics::advance(params, cylinder, h, inputs.p_supply, inputs.f_ext, spool, memory)?;
+        let path = SpoolPath {
+            h,
+            start: [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],
+            end: [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
+        };
+        let spool = |tau: f64| (path.position(tau), path.rate(tau));
+        hydraulics::advance_with_rate(params, cylinder, h, inputs.p_supply, inputs.f_ext, spool, memory)?;
         Ok(())
     }
 
@@ -944,20 +948,6 @@ fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
         z = sum;
     }
     z
-}
-
-/// Quintic Hermite interpolant on [0, h] through (value, rate, acceleration) at both ends.
-fn quintic_hermite(h: f64, start: &[f64; 3], end: &[f64; 3], tau: f64) -> f64 {
-    let s = tau / h;
-    let (s2, s3) = (s * s, s * s * s);
-    let (s4, s5) = (s3 * s, s3 * s2);
-    let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
-    let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
-    let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
-    let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
-    let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
-    let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
-    start[0] * h00 + h * start[1] * h10 + h * h * start[2] * h20 + end[0] * h01 + h * end[1] * h11 + h * h * end[2] * h21
 }
 
 /// Largest |eigenvalue| of `a`, from a Schur decomposition with bounded iterations; a
