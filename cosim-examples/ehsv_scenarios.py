@@ -342,35 +342,11 @@ def run_step(version: str, driver: str, i_step: float, *, h: float, t_stop: floa
     one before the step and everything after it sees the new command. Times are k*h,
     computed from integers, so runs with different h share their grid points exactly.
     """
-    n = int(round(t_stop / h))
-    k_step = int(round(t_step / h))
-    if abs(k_step * h - t_step) > 1e-12 * max(1.0, t_step) or abs(n * h - t_stop) > 1e-9 * t_stop:
-        raise ValueError("t_step and t_stop must be multiples of h")
     values = dict(params or {})
     values.setdefault("driver", DRIVERS[driver])
-    inst = Ehsv(version)
-    try:
-        for k, v in values.items():
-            inst.set(k, v)
-        inst.set("i_ref", i_before)
-        inst.set("V_supply", V_supply)
-        inst.initialize(start_time=0.0, stop_time=t_stop)
-        rec = np.empty((n + 1, len(outputs)))
-        rec[0] = inst.get(outputs)
-        for k in range(n):
-            if k == k_step:
-                inst.set("i_ref", i_step)
-            inst.do_step(k * h, h)
-            rec[k + 1] = inst.get(outputs)
-        inst.free()
-    except Exception as e:  # keep the FMU's own words with the exception
-        if inst.log:
-            raise RuntimeError(f"{e}\nFMU log:\n{inst.log_text()}") from e
-        raise
-    result = {"time": np.arange(n + 1) * h}
-    for j, name in enumerate(outputs):
-        result[name] = rec[:, j]
-    return result
+    return run_scenario(version, h=h, t_stop=t_stop, params=values,
+                        initial={"i_ref": i_before, "V_supply": V_supply},
+                        changes={"i_ref": i_step}, t_change=t_step, outputs=outputs)
 
 
 def settling_time(t, y, t_step: float, band: float, y_final: float | None = None,
