@@ -3,6 +3,7 @@
 
 mod scenario;
 
+use ehsv_actuator::model::Model;
 use scenario::{first_output, model, run, settling_to_end as settling_time};
 use ehsv_actuator::variables::vr;
 
@@ -192,4 +193,23 @@ fn travel_limits_hold_flapper_and_spool_and_release_them() {
     m.set(vr::I_REF, 0.0).unwrap();
     run(&mut m, 60e-3, 1e-4, &[]);
     assert!(m.get(vr::X_SPOOL).unwrap().abs() < 1e-9 && m.get(vr::X_FLAPPER).unwrap().abs() < 1e-9);
+}
+
+#[test]
+fn absurd_but_finite_parameters_refuse_the_step_quickly() {
+    // A coil of 1e-290 H, or a step of 1e300 s, puts |A h| where the matrix exponential's
+    // power estimates overflow: its scaling-and-squaring then loops (nearly) forever or
+    // wraps into garbage. The FMU refuses such a step at once and keeps its state.
+    for (l, h) in [(1e-290, 1e-4), (3.2, 1e300)] {
+        let mut m = Model::new();
+        m.set(vr::COIL_L, l).unwrap();
+        m.initialize().unwrap();
+        m.set(vr::I_REF, 5e-3).unwrap();
+        let started = std::time::Instant::now();
+        let message = m.do_step(m.time(), h).unwrap_err();
+        assert!(started.elapsed().as_secs_f64() < 1.0, "L {l}, h {h}: {:?}", started.elapsed());
+        assert!(message.contains("beyond exact propagation"), "{message}");
+        assert_eq!(m.time(), 0.0, "a refused step leaves the time");
+        assert_eq!(m.get(vr::I_COIL), Some(0.0));
+    }
 }

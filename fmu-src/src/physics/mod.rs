@@ -54,6 +54,8 @@ const MAX_EVENTS_PER_STEP: u32 = 1000;
 const TINY_PIECE: f64 = 1e-10;
 /// A cylinder counts as at rest when it would drift less than 1e-10 of its scale in this time [s].
 const REST_HORIZON: f64 = 1.0;
+/// Largest |A h|_1 handed to exp() (see `PropagatorCache::get`).
+const MAX_SCALED_NORM: f64 = 1e25;
 /// Sub-steps per propagation at most (a 1e6 s step stays well under a second).
 const MAX_SUBSTEPS: usize = 1 << 14;
 /// Bounds the work of one doStep with the PWM driver (each instant costs ~0.3 us).
@@ -393,21 +395,31 @@ impl PropagatorCache {
 
     /// `system` names the (mode, stops) pair; keys hold the bits of the span, so equal
     /// communication steps (the common case) hit exactly.
-    fn get(&mut self, system: usize, sys: &ModeSystem, span: f64) -> &Propagator {
+    fn get(&mut self, system: usize, sys: &ModeSystem, span: f64) -> Result<&Propagator, String> {
         let key = (system, span.to_bits());
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
             None => {
                 let substeps = sys.substeps(span, THETA_COARSE);
                 let h = span / substeps as f64;
+                let scaled = sys.a * h;
+                // exp() estimates norms of powers up to (A h)^10 and squares log2 of them
+                // times: past ~1e30 they overflow and the squaring never ends. Physical
+                // cases stay decades below MAX_SCALED_NORM (a 1e20 s step gives ~3e23).
+                let norm = scaled.column_iter().map(|c| c.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max);
+                if !(norm <= MAX_SCALED_NORM) {
+                    return Err(format!(
+                        "a sub-step of {h} s with these parameters is beyond exact propagation (|A h| = {norm:e}); step refused"
+                    ));
+                }
                 let slot = self.next;
                 self.keys[slot] = key;
-                self.values[slot] = Propagator { substeps, h, matrix: (sys.a * h).exp() };
+                self.values[slot] = Propagator { substeps, h, matrix: scaled.exp() };
                 self.next = (slot + 1) % CACHE_SLOTS;
                 slot
             }
         };
-        &self.values[slot]
+        Ok(&self.values[slot])
     }
 }
 
@@ -825,7 +837,7 @@ impl Physics {
             let (substeps, h, matrix) = if self.mode == Mode::Switched {
                 (1, span, None)
             } else {
-                let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span);
+                let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span)?;
                 (substeps, h, Some(matrix))
             };
             for k in 0..substeps {
