@@ -169,7 +169,7 @@ impl Params {
             slew_rate: pick(vr::DRIVER_SLEW_RATE, vr::INDUSTRIAL_SLEW_RATE),
             hbridge: hbridge::HBridgeParams::from_values(v),
             loops: LoopParams::from_values(v, v[vr::VALVE_K3] * v[vr::VALVE_K1] / v[vr::VALVE_KW])?,
-            cylinder: CylinderParams::from_lookup(|name| v[crate::variables::index_of(name).unwrap_or(0)], v[vr::VALVE_K3])?,
+            cylinder: CylinderParams::from_lookup(|name| v[crate::variables::index_of(name).expect("cylinder parameter in the variable table")], v[vr::VALVE_K3])?,
             inductance: v[vr::COIL_L],
             r_total: v[vr::COIL_R] + v[vr::COIL_R_SENSE],
             k_backemf: v[vr::COIL_K_B],
