@@ -662,7 +662,9 @@ impl SpoolPath {
 
 /// Advances the state by `h` seconds; `x_s(tau)` is the spool position at `tau` in `[0, h]`.
 /// Its rate (for `df/dt`) is taken by differencing `x_s` alone (no extra model evaluation);
-/// [`advance_with_rate`] takes the exact rate instead. On error the state is left as it was.
+/// the physics core uses [`advance_with_rate`] with the exact rate, the tests this form
+/// for arbitrary spool paths. On error the state is left as it was.
+#[cfg(test)]
 #[allow(clippy::too_many_arguments)]
 pub fn advance(
     params: &CylinderParams,

@@ -407,7 +407,7 @@ impl PropagatorCache {
                 // times: past ~1e30 they overflow and the squaring never ends. Physical
                 // cases stay decades below MAX_SCALED_NORM (a 1e20 s step gives ~3e23).
                 let norm = scaled.column_iter().map(|c| c.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max);
-                if !(norm <= MAX_SCALED_NORM) {
+                if norm.is_nan() || norm > MAX_SCALED_NORM {
                     return Err(format!(
                         "a sub-step of {h} s with these parameters is beyond exact propagation (|A h| = {norm:e}); step refused"
                     ));
