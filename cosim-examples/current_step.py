@@ -75,9 +75,7 @@ def main(argv=None) -> int:
     ax2.legend(loc="upper right")
     ax2.grid(alpha=0.3)
     fig.suptitle(f"EhsvActuator: 0 -> {args.step_mA:g} mA step, op-amp PI driver, {args.supply:g} V supply ({version})")
-    fig.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=120)
+    ehsv.save_figure(fig, args.out)
     print(f"  figure                   : {args.out}")
     return 0
 

@@ -81,9 +81,7 @@ def main(argv=None) -> int:
     ax2.legend(loc="upper right", fontsize=8)
     ax2.grid(alpha=0.3)
     fig.suptitle(f"EhsvActuator: 0 -> {step_ma:g} mA current step, three coil drivers ({version})")
-    fig.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=120)
+    ehsv.save_figure(fig, args.out)
     print(f"figure: {args.out}")
     return 0
 

@@ -855,6 +855,17 @@ def linear_model(driver: str, p: dict | None = None):
     raise ValueError(f"{driver} is not a linear case")
 
 
+def augmented_linear_model(driver: str, p: dict):
+    """[[A, B], [0, 0]] of linear_model: with the constant input as the last state, the
+    response to a step is the top of expm(M t) applied to (0, ..., 0, u)."""
+    a, b, names = linear_model(driver, p)
+    n = len(a)
+    m = np.zeros((n + 1, n + 1))
+    m[:n, :n] = a
+    m[:n, n] = b
+    return m, names
+
+
 def linear_step_response(driver: str, i_step: float, t, p: dict | None = None) -> dict[str, np.ndarray]:
     """Exact response to i_ref stepping from 0 to i_step at t = 0 (from rest), at times t.
 
@@ -863,11 +874,8 @@ def linear_step_response(driver: str, i_step: float, t, p: dict | None = None) -
     accumulated rounding). Returns i_coil, x_flapper, x_spool and Q_valve.
     """
     p = {**NOMINAL, **(p or {})}
-    a, b, names = linear_model(driver, p)
-    n = len(a)
-    m = np.zeros((n + 1, n + 1))
-    m[:n, :n] = a
-    m[:n, n] = b
+    m, names = augmented_linear_model(driver, p)
+    n = len(names)
     t = np.asarray(t, float)
     x = np.empty((len(t), n))
     for k, tk in enumerate(t):
@@ -886,11 +894,8 @@ def linear_step_response_dense(driver: str, i_step: float, dt: float, t_stop: fl
     """Like linear_step_response on the grid k*dt, propagated with one transition matrix
     (fast for fine grids; rounding grows ~1e-16 per step)."""
     p = {**NOMINAL, **(p or {})}
-    a, b, names = linear_model(driver, p)
-    n = len(a)
-    m = np.zeros((n + 1, n + 1))
-    m[:n, :n] = a
-    m[:n, n] = b
+    m, names = augmented_linear_model(driver, p)
+    n = len(names)
     phi = expm(m * dt)
     steps = int(round(t_stop / dt))
     z = np.zeros(n + 1)
@@ -955,3 +960,10 @@ if __name__ == "__main__":
         print(json.dumps(bad_input_case(sys.argv[2], sys.argv[3])))
     else:
         sys.exit("usage: ehsv_scenarios.py bad-input {fmi2|fmi3} {" + "|".join(BAD_INPUT_CASES) + "}")
+
+
+def save_figure(fig, out) -> None:
+    """Lays out ``fig`` and writes it to ``out`` (a Path), creating the folder."""
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)

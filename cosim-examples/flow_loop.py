@@ -69,9 +69,7 @@ def main(argv=None) -> int:
     ax3.legend(loc="lower right", fontsize=8)
     ax3.grid(alpha=0.3)
     fig.suptitle(f"EhsvActuator: flow step 0 -> {q_lmin:g} L/min, high- and low-voltage driver supply ({version})")
-    fig.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=120)
+    ehsv.save_figure(fig, args.out)
     print(f"figure: {args.out}")
     return 0
 
