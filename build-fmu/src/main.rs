@@ -30,9 +30,8 @@ fn run() -> Result<(), String> {
     let target = target_dir(&workspace);
     build_library(&workspace)?;
 
-    let library_path = target
-        .join("release")
-        .join(format!("{DLL_PREFIX}{FMU_LIBRARY}{DLL_SUFFIX}"));
+    let library_path =
+        target.join("release").join(format!("{DLL_PREFIX}{FMU_LIBRARY}{DLL_SUFFIX}"));
     let library = fs::read(&library_path)
         .map_err(|e| format!("cannot read {}: {e}", library_path.display()))?;
     let readme = format!(
@@ -47,10 +46,9 @@ fn run() -> Result<(), String> {
     let out_dir = target.join("fmu");
     fs::create_dir_all(&out_dir)
         .map_err(|e| format!("cannot create {}: {e}", out_dir.display()))?;
-    for (version, xml, platform) in [
-        ("fmi2", fmi2_xml(), fmi2_platform()?),
-        ("fmi3", fmi3_xml(), fmi3_platform()?),
-    ] {
+    for (version, xml, platform) in
+        [("fmi2", fmi2_xml(), fmi2_platform()?), ("fmi3", fmi3_xml(), fmi3_platform()?)]
+    {
         let binary = format!("binaries/{platform}/{library_name}");
         let entries: [(&str, &[u8]); 4] = [
             ("modelDescription.xml", xml.as_bytes()),
@@ -72,10 +70,7 @@ fn run() -> Result<(), String> {
 /// build-fmu lives one level below the workspace root.
 fn workspace_root() -> PathBuf {
     let manifest_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-    manifest_dir
-        .parent()
-        .expect("build-fmu is inside the workspace")
-        .to_path_buf()
+    manifest_dir.parent().expect("build-fmu is inside the workspace").to_path_buf()
 }
 
 /// CARGO_TARGET_DIR if set (relative to the workspace, where we run cargo), else `<workspace>/target`.
@@ -97,9 +92,7 @@ fn build_library(workspace: &Path) -> Result<(), String> {
     if status.success() {
         Ok(())
     } else {
-        Err(format!(
-            "cargo build --release -p {FMU_PACKAGE} failed ({status})"
-        ))
+        Err(format!("cargo build --release -p {FMU_PACKAGE} failed ({status})"))
     }
 }
 
@@ -111,11 +104,7 @@ fn fmi2_platform() -> Result<String, String> {
         "macos" => "darwin",
         other => return Err(format!("FMI 2.0 has no platform folder for OS {other}")),
     };
-    let bits = if cfg!(target_pointer_width = "64") {
-        "64"
-    } else {
-        "32"
-    };
+    let bits = if cfg!(target_pointer_width = "64") { "64" } else { "32" };
     Ok(format!("{os}{bits}"))
 }
 
@@ -150,10 +139,7 @@ fn write_zip(path: &Path, entries: &[(&str, &[u8])]) -> zip::result::ZipResult<(
 
 /// documentation/index.html (the FMI entry point): the variable table as HTML.
 fn documentation_html() -> String {
-    let mut rows = variables_markdown()
-        .lines()
-        .map(markdown_cells)
-        .collect::<Vec<_>>();
+    let mut rows = variables_markdown().lines().map(markdown_cells).collect::<Vec<_>>();
     rows.remove(1); // the |---| separator row
     let mut html = format!(
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{MODEL_IDENTIFIER}</title></head><body>\n\
@@ -197,20 +183,12 @@ fn markdown_cells(line: &str) -> Vec<String> {
 fn code_spans(text: &str) -> String {
     text.split('`')
         .enumerate()
-        .map(|(i, part)| {
-            if i % 2 == 1 {
-                format!("<code>{part}</code>")
-            } else {
-                part.to_string()
-            }
-        })
+        .map(|(i, part)| if i % 2 == 1 { format!("<code>{part}</code>") } else { part.to_string() })
         .collect()
 }
 
 fn escape(text: &str) -> String {
-    text.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
 #[cfg(test)]
@@ -219,10 +197,7 @@ mod tests {
 
     #[test]
     fn markdown_cells_keep_empty_cells_and_escaped_pipes() {
-        assert_eq!(
-            markdown_cells("| 0 | `time` |  | a \\| b |"),
-            ["0", "`time`", "", "a | b"]
-        );
+        assert_eq!(markdown_cells("| 0 | `time` |  | a \\| b |"), ["0", "`time`", "", "a | b"]);
     }
 
     #[test]

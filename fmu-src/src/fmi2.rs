@@ -12,8 +12,8 @@
 use std::ffi::{c_char, c_int, c_uint, c_void};
 
 use crate::fmi_common::{
-    free_instance, guarded, instantiate, unsupported, with_instance, Boolean2, Fmi2Logger, Integer2, Logger, Real2,
-    State, Status, Version, ANY_STATE, GET_STATES, SET_STATES,
+    free_instance, guarded, instantiate, unsupported, with_instance, Boolean2, Fmi2Logger,
+    Integer2, Logger, Real2, State, Status, Version, ANY_STATE, GET_STATES, SET_STATES,
 };
 
 pub type fmi2Component = *mut c_void;
@@ -110,14 +110,26 @@ pub unsafe extern "C" fn fmi2Instantiate(
         || {
             // SAFETY: a non-NULL `functions` points to a valid struct (FMI contract).
             let logger = match unsafe { functions.as_ref() } {
-                Some(fns) => fns.logger.map_or(Logger::None, |cb| Logger::Fmi2(cb, fns.componentEnvironment)),
+                Some(fns) => {
+                    fns.logger.map_or(Logger::None, |cb| Logger::Fmi2(cb, fns.componentEnvironment))
+                }
                 None => Logger::None,
             };
             let refusal = (fmuType != fmi2CoSimulation).then(|| {
                 format!("fmuType {fmuType} is not supported: EhsvActuator is a Co-Simulation FMU only (fmi2CoSimulation = 1)")
             });
             // SAFETY: string contracts forwarded.
-            unsafe { instantiate(V, "fmi2Instantiate", instanceName, fmuGUID, logger, loggingOn != fmi2False, refusal) }
+            unsafe {
+                instantiate(
+                    V,
+                    "fmi2Instantiate",
+                    instanceName,
+                    fmuGUID,
+                    logger,
+                    loggingOn != fmi2False,
+                    refusal,
+                )
+            }
         },
         |_| std::ptr::null_mut(),
     )
@@ -210,7 +222,11 @@ pub unsafe extern "C" fn fmi2GetReal(
     value: *mut fmi2Real,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2GetReal", GET_STATES, |inst| inst.get_values::<Real2>(vr, nvr, value, nvr)) }
+    unsafe {
+        with_instance(c, V, "fmi2GetReal", GET_STATES, |inst| {
+            inst.get_values::<Real2>(vr, nvr, value, nvr)
+        })
+    }
 }
 
 /// Enumerations are read with fmi2GetInteger.
@@ -225,7 +241,11 @@ pub unsafe extern "C" fn fmi2GetInteger(
     value: *mut fmi2Integer,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2GetInteger", GET_STATES, |inst| inst.get_values::<Integer2>(vr, nvr, value, nvr)) }
+    unsafe {
+        with_instance(c, V, "fmi2GetInteger", GET_STATES, |inst| {
+            inst.get_values::<Integer2>(vr, nvr, value, nvr)
+        })
+    }
 }
 
 /// # Safety
@@ -238,7 +258,11 @@ pub unsafe extern "C" fn fmi2GetBoolean(
     value: *mut fmi2Boolean,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2GetBoolean", GET_STATES, |inst| inst.get_values::<Boolean2>(vr, nvr, value, nvr)) }
+    unsafe {
+        with_instance(c, V, "fmi2GetBoolean", GET_STATES, |inst| {
+            inst.get_values::<Boolean2>(vr, nvr, value, nvr)
+        })
+    }
 }
 
 /// There are no String variables: only `nvr = 0` succeeds.
@@ -253,7 +277,11 @@ pub unsafe extern "C" fn fmi2GetString(
     _value: *mut fmi2String,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2GetString", GET_STATES, |inst| inst.no_values("String", vr, nvr, None)) }
+    unsafe {
+        with_instance(c, V, "fmi2GetString", GET_STATES, |inst| {
+            inst.no_values("String", vr, nvr, None)
+        })
+    }
 }
 
 /// # Safety
@@ -266,7 +294,11 @@ pub unsafe extern "C" fn fmi2SetReal(
     value: *const fmi2Real,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2SetReal", SET_STATES, |inst| inst.set_values::<Real2>(vr, nvr, value, nvr)) }
+    unsafe {
+        with_instance(c, V, "fmi2SetReal", SET_STATES, |inst| {
+            inst.set_values::<Real2>(vr, nvr, value, nvr)
+        })
+    }
 }
 
 /// Enumerations are set with fmi2SetInteger.
@@ -281,7 +313,11 @@ pub unsafe extern "C" fn fmi2SetInteger(
     value: *const fmi2Integer,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2SetInteger", SET_STATES, |inst| inst.set_values::<Integer2>(vr, nvr, value, nvr)) }
+    unsafe {
+        with_instance(c, V, "fmi2SetInteger", SET_STATES, |inst| {
+            inst.set_values::<Integer2>(vr, nvr, value, nvr)
+        })
+    }
 }
 
 /// # Safety
@@ -294,7 +330,11 @@ pub unsafe extern "C" fn fmi2SetBoolean(
     value: *const fmi2Boolean,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2SetBoolean", SET_STATES, |inst| inst.set_values::<Boolean2>(vr, nvr, value, nvr)) }
+    unsafe {
+        with_instance(c, V, "fmi2SetBoolean", SET_STATES, |inst| {
+            inst.set_values::<Boolean2>(vr, nvr, value, nvr)
+        })
+    }
 }
 
 /// # Safety
@@ -307,7 +347,11 @@ pub unsafe extern "C" fn fmi2SetString(
     _value: *const fmi2String,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2SetString", SET_STATES, |inst| inst.no_values("String", vr, nvr, None)) }
+    unsafe {
+        with_instance(c, V, "fmi2SetString", SET_STATES, |inst| {
+            inst.no_values("String", vr, nvr, None)
+        })
+    }
 }
 
 // ---------------------------------------------------------------- FMU state
@@ -315,9 +359,14 @@ pub unsafe extern "C" fn fmi2SetString(
 /// # Safety
 /// `c` is NULL or a live instance; `FMUstate` is NULL or points to NULL or to a live state.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, FMUstate: *mut fmi2FMUstate) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetFMUstate(
+    c: fmi2Component,
+    FMUstate: *mut fmi2FMUstate,
+) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2GetFMUstate", ANY_STATE, |inst| inst.get_fmu_state(FMUstate)) }
+    unsafe {
+        with_instance(c, V, "fmi2GetFMUstate", ANY_STATE, |inst| inst.get_fmu_state(FMUstate))
+    }
 }
 
 /// # Safety
@@ -325,15 +374,22 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, FMUstate: *mut fmi2FM
 #[no_mangle]
 pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, FMUstate: fmi2FMUstate) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2SetFMUstate", ANY_STATE, |inst| inst.set_fmu_state(FMUstate)) }
+    unsafe {
+        with_instance(c, V, "fmi2SetFMUstate", ANY_STATE, |inst| inst.set_fmu_state(FMUstate))
+    }
 }
 
 /// # Safety
 /// As [`fmi2GetFMUstate`].
 #[no_mangle]
-pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, FMUstate: *mut fmi2FMUstate) -> fmi2Status {
+pub unsafe extern "C" fn fmi2FreeFMUstate(
+    c: fmi2Component,
+    FMUstate: *mut fmi2FMUstate,
+) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2FreeFMUstate", ANY_STATE, |inst| inst.free_fmu_state(FMUstate)) }
+    unsafe {
+        with_instance(c, V, "fmi2FreeFMUstate", ANY_STATE, |inst| inst.free_fmu_state(FMUstate))
+    }
 }
 
 /// # Safety
@@ -345,7 +401,11 @@ pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
     size: *mut usize,
 ) -> fmi2Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(c, V, "fmi2SerializedFMUstateSize", ANY_STATE, |inst| inst.serialized_size(FMUstate, size)) }
+    unsafe {
+        with_instance(c, V, "fmi2SerializedFMUstateSize", ANY_STATE, |inst| {
+            inst.serialized_size(FMUstate, size)
+        })
+    }
 }
 
 /// # Safety
@@ -399,7 +459,14 @@ pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
     _dvUnknown: *mut fmi2Real,
 ) -> fmi2Status {
     // SAFETY: forwarded contract.
-    unsafe { unsupported(c, V, "fmi2GetDirectionalDerivative", " (providesDirectionalDerivative = false)") }
+    unsafe {
+        unsupported(
+            c,
+            V,
+            "fmi2GetDirectionalDerivative",
+            " (providesDirectionalDerivative = false)",
+        )
+    }
 }
 
 /// Not supported (canInterpolateInputs = false).
@@ -477,7 +544,11 @@ const STATUS_STATES: &[State] = &[State::StepMode, State::Terminated];
 /// # Safety
 /// `c` is NULL or a live instance; `value` NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Status) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Status,
+) -> fmi2Status {
     // SAFETY: forwarded contracts.
     unsafe {
         with_instance(c, V, "fmi2GetStatus", STATUS_STATES, |inst| {
@@ -492,13 +563,19 @@ pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, s: fmi2StatusKind, valu
 /// # Safety
 /// `c` is NULL or a live instance; `value` NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetRealStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Real,
+) -> fmi2Status {
     // SAFETY: forwarded contracts.
     unsafe {
         with_instance(c, V, "fmi2GetRealStatus", STATUS_STATES, |inst| {
             let value = inst.out("value", value)?;
             if s != fmi2LastSuccessfulTime {
-                return inst.discard(&format!("status kind {s} has no Real value (only fmi2LastSuccessfulTime)"));
+                return inst.discard(&format!(
+                    "status kind {s} has no Real value (only fmi2LastSuccessfulTime)"
+                ));
             }
             *value = inst.model.time();
             Ok(Status::OK)
@@ -511,7 +588,11 @@ pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, 
 /// # Safety
 /// `c` is NULL or a live instance; `value` NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Integer) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetIntegerStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Integer,
+) -> fmi2Status {
     // SAFETY: forwarded contracts.
     unsafe {
         with_instance(c, V, "fmi2GetIntegerStatus", STATUS_STATES, |inst| {
@@ -526,13 +607,19 @@ pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKin
 /// # Safety
 /// `c` is NULL or a live instance; `value` NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetBooleanStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
     // SAFETY: forwarded contracts.
     unsafe {
         with_instance(c, V, "fmi2GetBooleanStatus", STATUS_STATES, |inst| {
             let value = inst.out("value", value)?;
             if s != fmi2Terminated {
-                return inst.discard(&format!("status kind {s} has no Boolean value (only fmi2Terminated)"));
+                return inst.discard(&format!(
+                    "status kind {s} has no Boolean value (only fmi2Terminated)"
+                ));
             }
             *value = fmi2False;
             Ok(Status::OK)
@@ -545,12 +632,18 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKin
 /// # Safety
 /// `c` is NULL or a live instance; `value` NULL or writable.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2String) -> fmi2Status {
+pub unsafe extern "C" fn fmi2GetStringStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2String,
+) -> fmi2Status {
     // SAFETY: forwarded contracts.
     unsafe {
         with_instance(c, V, "fmi2GetStringStatus", STATUS_STATES, |inst| {
             inst.out("value", value)?;
-            inst.discard(&format!("status kind {s} has no String value (fmi2DoStep is synchronous)"))
+            inst.discard(&format!(
+                "status kind {s} has no String value (fmi2DoStep is synchronous)"
+            ))
         })
     }
 }

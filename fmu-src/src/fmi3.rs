@@ -13,8 +13,9 @@
 use std::ffi::{c_char, c_int, c_void};
 
 use crate::fmi_common::{
-    self as common, free_instance, guarded, instantiate, unsupported, with_instance, Access, Boolean3, Fmi3Logger,
-    Float64, Logger, State, Status, Version, ANY_STATE, GET_STATES, SET_STATES,
+    self as common, free_instance, guarded, instantiate, unsupported, with_instance, Access,
+    Boolean3, Float64, Fmi3Logger, Logger, State, Status, Version, ANY_STATE, GET_STATES,
+    SET_STATES,
 };
 
 pub type fmi3Instance = *mut c_void;
@@ -127,7 +128,14 @@ pub unsafe extern "C" fn fmi3InstantiateModelExchange(
     logMessage: fmi3LogMessageCallback,
 ) -> fmi3Instance {
     // SAFETY: forwarded contract.
-    unsafe { refuse_interface("fmi3InstantiateModelExchange", instanceName, instanceEnvironment, logMessage) }
+    unsafe {
+        refuse_interface(
+            "fmi3InstantiateModelExchange",
+            instanceName,
+            instanceEnvironment,
+            logMessage,
+        )
+    }
 }
 
 /// Refuses (NULL + log) a wrong token, an empty name and `eventModeUsed` (no event
@@ -153,12 +161,21 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
 ) -> fmi3Instance {
     guarded(
         || {
-            let logger = logMessage.map_or(Logger::None, |cb| Logger::Fmi3(cb, instanceEnvironment));
+            let logger =
+                logMessage.map_or(Logger::None, |cb| Logger::Fmi3(cb, instanceEnvironment));
             let refusal = eventModeUsed
                 .then(|| "eventModeUsed = true is not supported: EhsvActuator has no event mode (hasEventMode = false)".to_string());
             // SAFETY: string contracts forwarded.
             unsafe {
-                instantiate(V, "fmi3InstantiateCoSimulation", instanceName, instantiationToken, logger, loggingOn, refusal)
+                instantiate(
+                    V,
+                    "fmi3InstantiateCoSimulation",
+                    instanceName,
+                    instantiationToken,
+                    logger,
+                    loggingOn,
+                    refusal,
+                )
             }
         },
         |_| std::ptr::null_mut(),
@@ -183,7 +200,14 @@ pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
     _unlockPreemption: fmi3UnlockPreemptionCallback,
 ) -> fmi3Instance {
     // SAFETY: forwarded contract.
-    unsafe { refuse_interface("fmi3InstantiateScheduledExecution", instanceName, instanceEnvironment, logMessage) }
+    unsafe {
+        refuse_interface(
+            "fmi3InstantiateScheduledExecution",
+            instanceName,
+            instanceEnvironment,
+            logMessage,
+        )
+    }
 }
 
 /// # Safety
@@ -225,9 +249,13 @@ pub unsafe extern "C" fn fmi3EnterInitializationMode(
 pub unsafe extern "C" fn fmi3ExitInitializationMode(instance: fmi3Instance) -> fmi3Status {
     // SAFETY: forwarded contract.
     unsafe {
-        with_instance(instance, V, "fmi3ExitInitializationMode", &[State::InitializationMode], |inst| {
-            inst.exit_initialization()
-        })
+        with_instance(
+            instance,
+            V,
+            "fmi3ExitInitializationMode",
+            &[State::InitializationMode],
+            |inst| inst.exit_initialization(),
+        )
     }
 }
 
@@ -281,7 +309,12 @@ macro_rules! get_set {
             // size and alignment (bool is read/written as a 0/1 byte).
             unsafe {
                 with_instance(instance, V, stringify!($get), GET_STATES, |inst| {
-                    inst.get_values::<$acc>(valueReferences, nValueReferences, values.cast::<<$acc as Access>::C>(), nValues)
+                    inst.get_values::<$acc>(
+                        valueReferences,
+                        nValueReferences,
+                        values.cast::<<$acc as Access>::C>(),
+                        nValues,
+                    )
                 })
             }
         }
@@ -299,7 +332,12 @@ macro_rules! get_set {
             // SAFETY: as the getter.
             unsafe {
                 with_instance(instance, V, stringify!($set), SET_STATES, |inst| {
-                    inst.set_values::<$acc>(valueReferences, nValueReferences, values.cast::<<$acc as Access>::C>(), nValues)
+                    inst.set_values::<$acc>(
+                        valueReferences,
+                        nValueReferences,
+                        values.cast::<<$acc as Access>::C>(),
+                        nValues,
+                    )
                 })
             }
         }
@@ -445,7 +483,14 @@ pub unsafe extern "C" fn fmi3GetNumberOfVariableDependencies(
     _nDependencies: *mut usize,
 ) -> fmi3Status {
     // SAFETY: forwarded contract.
-    unsafe { unsupported(instance, V, "fmi3GetNumberOfVariableDependencies", " (providesPerElementDependencies = false)") }
+    unsafe {
+        unsupported(
+            instance,
+            V,
+            "fmi3GetNumberOfVariableDependencies",
+            " (providesPerElementDependencies = false)",
+        )
+    }
 }
 
 /// Not supported (providesPerElementDependencies = false).
@@ -463,7 +508,14 @@ pub unsafe extern "C" fn fmi3GetVariableDependencies(
     _nDependencies: usize,
 ) -> fmi3Status {
     // SAFETY: forwarded contract.
-    unsafe { unsupported(instance, V, "fmi3GetVariableDependencies", " (providesPerElementDependencies = false)") }
+    unsafe {
+        unsupported(
+            instance,
+            V,
+            "fmi3GetVariableDependencies",
+            " (providesPerElementDependencies = false)",
+        )
+    }
 }
 
 // ---------------------------------------------------------------- FMU state
@@ -471,25 +523,46 @@ pub unsafe extern "C" fn fmi3GetVariableDependencies(
 /// # Safety
 /// `instance` is NULL or live; `FMUState` is NULL or points to NULL or to a live state.
 #[no_mangle]
-pub unsafe extern "C" fn fmi3GetFMUState(instance: fmi3Instance, FMUState: *mut fmi3FMUState) -> fmi3Status {
+pub unsafe extern "C" fn fmi3GetFMUState(
+    instance: fmi3Instance,
+    FMUState: *mut fmi3FMUState,
+) -> fmi3Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(instance, V, "fmi3GetFMUState", ANY_STATE, |inst| inst.get_fmu_state(FMUState)) }
+    unsafe {
+        with_instance(instance, V, "fmi3GetFMUState", ANY_STATE, |inst| {
+            inst.get_fmu_state(FMUState)
+        })
+    }
 }
 
 /// # Safety
 /// `instance` is NULL or live; `FMUState` is NULL or a live state.
 #[no_mangle]
-pub unsafe extern "C" fn fmi3SetFMUState(instance: fmi3Instance, FMUState: fmi3FMUState) -> fmi3Status {
+pub unsafe extern "C" fn fmi3SetFMUState(
+    instance: fmi3Instance,
+    FMUState: fmi3FMUState,
+) -> fmi3Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(instance, V, "fmi3SetFMUState", ANY_STATE, |inst| inst.set_fmu_state(FMUState)) }
+    unsafe {
+        with_instance(instance, V, "fmi3SetFMUState", ANY_STATE, |inst| {
+            inst.set_fmu_state(FMUState)
+        })
+    }
 }
 
 /// # Safety
 /// As [`fmi3GetFMUState`].
 #[no_mangle]
-pub unsafe extern "C" fn fmi3FreeFMUState(instance: fmi3Instance, FMUState: *mut fmi3FMUState) -> fmi3Status {
+pub unsafe extern "C" fn fmi3FreeFMUState(
+    instance: fmi3Instance,
+    FMUState: *mut fmi3FMUState,
+) -> fmi3Status {
     // SAFETY: forwarded contracts.
-    unsafe { with_instance(instance, V, "fmi3FreeFMUState", ANY_STATE, |inst| inst.free_fmu_state(FMUState)) }
+    unsafe {
+        with_instance(instance, V, "fmi3FreeFMUState", ANY_STATE, |inst| {
+            inst.free_fmu_state(FMUState)
+        })
+    }
 }
 
 /// # Safety
@@ -502,7 +575,9 @@ pub unsafe extern "C" fn fmi3SerializedFMUStateSize(
 ) -> fmi3Status {
     // SAFETY: forwarded contracts.
     unsafe {
-        with_instance(instance, V, "fmi3SerializedFMUStateSize", ANY_STATE, |inst| inst.serialized_size(FMUState, size))
+        with_instance(instance, V, "fmi3SerializedFMUStateSize", ANY_STATE, |inst| {
+            inst.serialized_size(FMUState, size)
+        })
     }
 }
 

@@ -19,7 +19,10 @@ use crate::variables::{Causality, VarType, Variability, VARIABLES};
 /// Log categories, `(name, description)`: the one list the C API accepts in
 /// `SetDebugLogging` and both modelDescription.xml files declare.
 pub const LOG_CATEGORIES: &[(&str, &str)] = &[
-    ("logEvents", "Events inside a communication step: the driver output reaching or leaving a supply rail"),
+    (
+        "logEvents",
+        "Events inside a communication step: the driver output reaching or leaving a supply rail",
+    ),
     ("logStatusWarning", "Calls that return Warning or Discard"),
     ("logStatusError", "Calls that return Error (always logged when a logger callback is given)"),
     ("logAll", "Everything, including one line per call into the FMU"),
@@ -110,7 +113,9 @@ impl Logger {
                 // SAFETY: `cb` is the importer's logger from fmi2CallbackFunctions; every
                 // string argument is a live NUL-terminated C string, and `msg` has no
                 // unescaped conversion so no variadic argument is read.
-                unsafe { cb(env, instance_name.as_ptr(), status as c_int, cat.as_ptr(), msg.as_ptr()) }
+                unsafe {
+                    cb(env, instance_name.as_ptr(), status as c_int, cat.as_ptr(), msg.as_ptr())
+                }
             }
             Logger::Fmi3(cb, env) => {
                 let msg = c_text(message);
@@ -316,7 +321,12 @@ pub(crate) unsafe fn free_instance(ptr: *mut c_void, version: Version, func: &'s
 ///
 /// # Safety
 /// As [`with_instance`].
-pub(crate) unsafe fn unsupported(ptr: *mut c_void, version: Version, func: &'static str, why: &str) -> Status {
+pub(crate) unsafe fn unsupported(
+    ptr: *mut c_void,
+    version: Version,
+    func: &'static str,
+    why: &str,
+) -> Status {
     // SAFETY: forwarded contract.
     unsafe {
         with_instance(ptr, version, func, ANY_STATE, |inst| {
@@ -364,7 +374,14 @@ access!(
     /// fmi2Integer serves enumerations (FMI 2 has no separate enumeration accessor).
     Integer2, c_int, "Integer", |t| matches!(t, VarType::Enumeration(_)), |v: f64| v as c_int, |c: c_int| c as f64
 );
-access!(Boolean2, c_int, "Boolean", |t| t == VarType::Boolean, |v: f64| (v != 0.0) as c_int, |c: c_int| (c != 0) as u8 as f64);
+access!(
+    Boolean2,
+    c_int,
+    "Boolean",
+    |t| t == VarType::Boolean,
+    |v: f64| (v != 0.0) as c_int,
+    |c: c_int| (c != 0) as u8 as f64
+);
 access!(Float64, f64, "Float64", |t| t == VarType::Real, |v| v, |c| c);
 access!(
     /// FMI 3 enumerations are Int64.
@@ -390,8 +407,12 @@ fn type_label(ty: VarType, version: Version) -> String {
         (VarType::Real, Version::Fmi2) => "Real".into(),
         (VarType::Real, Version::Fmi3) => "Float64".into(),
         (VarType::Boolean, _) => "Boolean".into(),
-        (VarType::Enumeration(e), Version::Fmi2) => format!("Enumeration {e} (use fmi2GetInteger/fmi2SetInteger)"),
-        (VarType::Enumeration(e), Version::Fmi3) => format!("Enumeration {e} (use fmi3GetInt64/fmi3SetInt64)"),
+        (VarType::Enumeration(e), Version::Fmi2) => {
+            format!("Enumeration {e} (use fmi2GetInteger/fmi2SetInteger)")
+        }
+        (VarType::Enumeration(e), Version::Fmi3) => {
+            format!("Enumeration {e} (use fmi3GetInt64/fmi3SetInt64)")
+        }
     }
 }
 
@@ -437,7 +458,12 @@ impl Instance {
     /// # Safety
     /// A non-NULL `ptr` points to `n` initialised `T` that stay valid and unaliased by
     /// writes for the call (FMI contract for array arguments).
-    pub(crate) unsafe fn slice<'a, T>(&self, what: &str, ptr: *const T, n: usize) -> Result<&'a [T], Status> {
+    pub(crate) unsafe fn slice<'a, T>(
+        &self,
+        what: &str,
+        ptr: *const T,
+        n: usize,
+    ) -> Result<&'a [T], Status> {
         if n == 0 {
             return Ok(&[]);
         }
@@ -450,7 +476,12 @@ impl Instance {
     ///
     /// # Safety
     /// A non-NULL `ptr` points to `n` writable `T` not otherwise accessed during the call.
-    pub(crate) unsafe fn slice_mut<'a, T>(&self, what: &str, ptr: *mut T, n: usize) -> Result<&'a mut [T], Status> {
+    pub(crate) unsafe fn slice_mut<'a, T>(
+        &self,
+        what: &str,
+        ptr: *mut T,
+        n: usize,
+    ) -> Result<&'a mut [T], Status> {
         if n == 0 {
             return Ok(&mut []);
         }
@@ -486,7 +517,12 @@ impl Instance {
     }
 
     /// The index of value reference `vr` if it names a variable of a type the accessor serves.
-    fn resolve(&self, vr: u32, accessor: &str, accepts: fn(VarType) -> bool) -> Result<usize, Status> {
+    fn resolve(
+        &self,
+        vr: u32,
+        accessor: &str,
+        accepts: fn(VarType) -> bool,
+    ) -> Result<usize, Status> {
         let Some(var) = VARIABLES.get(vr as usize) else {
             return self.error(&format!("unknown value reference {vr}"));
         };
@@ -509,7 +545,11 @@ impl Instance {
             (Causality::Parameter, _) => &[Instantiated, InitializationMode, StepMode],
             (Causality::Input, _) => &[Instantiated, InitializationMode, StepMode],
             (Causality::Output | Causality::Independent, _) => {
-                let kind = if var.causality == Causality::Output { "an output" } else { "the independent variable" };
+                let kind = if var.causality == Causality::Output {
+                    "an output"
+                } else {
+                    "the independent variable"
+                };
                 return self.error(&format!("{} is {kind} and cannot be set", var.name));
             }
         };
@@ -545,12 +585,17 @@ impl Instance {
             ));
         }
         // SAFETY: forwarded array contracts.
-        let (vrs, out) = unsafe { (self.slice("valueReferences", vrs, n_vr)?, self.slice_mut("values", values, n_values)?) };
+        let (vrs, out) = unsafe {
+            (self.slice("valueReferences", vrs, n_vr)?, self.slice_mut("values", values, n_values)?)
+        };
         for (&vr, slot) in vrs.iter().zip(out.iter_mut()) {
             let index = self.resolve(vr, A::NAME, A::accepts)?;
             match self.model.get(index) {
                 Some(v) => *slot = A::to_c(v),
-                None => return self.error(&format!("the model has no value for {}", VARIABLES[index].name)),
+                None => {
+                    return self
+                        .error(&format!("the model has no value for {}", VARIABLES[index].name))
+                }
             }
         }
         Ok(Status::OK)
@@ -574,7 +619,9 @@ impl Instance {
             ));
         }
         // SAFETY: forwarded array contracts.
-        let (vrs, vals) = unsafe { (self.slice("valueReferences", vrs, n_vr)?, self.slice("values", values, n_values)?) };
+        let (vrs, vals) = unsafe {
+            (self.slice("valueReferences", vrs, n_vr)?, self.slice("values", values, n_values)?)
+        };
         for &vr in vrs {
             let index = self.resolve(vr, A::NAME, A::accepts)?;
             self.check_settable(index)?;
@@ -584,7 +631,10 @@ impl Instance {
             [vr] => self.model.set(*vr as usize, A::from_c(vals[0])),
             _ => {
                 let mut scratch = self.model.clone();
-                let r = vrs.iter().zip(vals).try_for_each(|(&vr, &c)| scratch.set(vr as usize, A::from_c(c)));
+                let r = vrs
+                    .iter()
+                    .zip(vals)
+                    .try_for_each(|(&vr, &c)| scratch.set(vr as usize, A::from_c(c)));
                 if r.is_ok() {
                     self.model = scratch;
                 }
@@ -610,7 +660,9 @@ impl Instance {
         n_values: Option<usize>,
     ) -> Result<Status, Status> {
         if let Some(n) = n_values.filter(|&n| n != n_vr) {
-            return self.error(&format!("nValues = {n} but the {n_vr} value references (all scalars) need {n_vr}"));
+            return self.error(&format!(
+                "nValues = {n} but the {n_vr} value references (all scalars) need {n_vr}"
+            ));
         }
         // SAFETY: forwarded array contract.
         let vrs = unsafe { self.slice("valueReferences", vrs, n_vr)? };
@@ -625,19 +677,29 @@ impl Instance {
     ///
     /// # Safety
     /// `categories` points to `n` NULL-or-C-string pointers.
-    pub(crate) unsafe fn set_debug_logging(&mut self, on: bool, n: usize, categories: *const *const c_char) -> Result<Status, Status> {
+    pub(crate) unsafe fn set_debug_logging(
+        &mut self,
+        on: bool,
+        n: usize,
+        categories: *const *const c_char,
+    ) -> Result<Status, Status> {
         // SAFETY: forwarded array contract.
         let names = unsafe { self.slice("categories", categories, n)? };
         let mut chosen = [false; N_CATEGORIES];
         for &p in names {
             // SAFETY: each element is NULL or a C string (contract).
-            let Some(name) = (unsafe { opt_str(p) }) else { return self.error("a category is NULL") };
+            let Some(name) = (unsafe { opt_str(p) }) else {
+                return self.error("a category is NULL");
+            };
             let name = name.to_string_lossy();
             match LOG_CATEGORIES.iter().position(|(c, _)| *c == name) {
                 Some(i) => chosen[i] = true,
                 None => {
                     let known: Vec<_> = LOG_CATEGORIES.iter().map(|(c, _)| *c).collect();
-                    return self.error(&format!("unknown log category '{name}' (known: {})", known.join(", ")));
+                    return self.error(&format!(
+                        "unknown log category '{name}' (known: {})",
+                        known.join(", ")
+                    ));
                 }
             }
         }
@@ -650,10 +712,16 @@ impl Instance {
     }
 
     /// Start (and optional stop) time of the experiment.
-    pub(crate) fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> Result<Status, Status> {
+    pub(crate) fn setup_experiment(
+        &mut self,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Result<Status, Status> {
         if let Some(stop) = stop {
             if !stop.is_finite() || stop < start || start.is_nan() {
-                return self.error(&format!("stopTime {stop} must be finite and not before startTime {start}"));
+                return self.error(&format!(
+                    "stopTime {stop} must be finite and not before startTime {start}"
+                ));
             }
         }
         if let Err(e) = self.model.set_start_time(start) {
@@ -688,7 +756,9 @@ impl Instance {
             let end = t + h;
             let tolerance = 1e-9 * stop.abs().max(h.abs()).max(1e-9);
             if end > stop + tolerance {
-                return self.error(&format!("a step from {t} by {h} ends at {end}, after stopTime {stop}"));
+                return self.error(&format!(
+                    "a step from {t} by {h} ends at {end}, after stopTime {stop}"
+                ));
             }
         }
         match self.model.do_step(t, h) {
@@ -786,7 +856,11 @@ impl Instance {
 
     /// # Safety
     /// `state` is NULL or a live state of ours; `size` is NULL or writable.
-    pub(crate) unsafe fn serialized_size(&self, state: *mut c_void, size: *mut usize) -> Result<Status, Status> {
+    pub(crate) unsafe fn serialized_size(
+        &self,
+        state: *mut c_void,
+        size: *mut usize,
+    ) -> Result<Status, Status> {
         // SAFETY: forwarded contracts.
         let (saved, size) = unsafe { (self.saved(state)?, self.out("size", size)?) };
         *size = saved.model.to_bytes().len();
@@ -795,12 +869,20 @@ impl Instance {
 
     /// # Safety
     /// `state` as above; `bytes` points to `size` writable bytes.
-    pub(crate) unsafe fn serialize(&self, state: *mut c_void, bytes: *mut u8, size: usize) -> Result<Status, Status> {
+    pub(crate) unsafe fn serialize(
+        &self,
+        state: *mut c_void,
+        bytes: *mut u8,
+        size: usize,
+    ) -> Result<Status, Status> {
         // SAFETY: forwarded contract.
         let saved = unsafe { self.saved(state)? };
         let data = saved.model.to_bytes();
         if size < data.len() {
-            return self.error(&format!("size {size} is too small: the serialized state has {} bytes", data.len()));
+            return self.error(&format!(
+                "size {size} is too small: the serialized state has {} bytes",
+                data.len()
+            ));
         }
         // SAFETY: forwarded array contract.
         let out = unsafe { self.slice_mut("serializedState", bytes, size)? };
@@ -810,7 +892,12 @@ impl Instance {
 
     /// # Safety
     /// `bytes` points to `size` readable bytes; `state` as in [`Instance::store_state`].
-    pub(crate) unsafe fn deserialize(&self, bytes: *const u8, size: usize, state: *mut *mut c_void) -> Result<Status, Status> {
+    pub(crate) unsafe fn deserialize(
+        &self,
+        bytes: *const u8,
+        size: usize,
+        state: *mut *mut c_void,
+    ) -> Result<Status, Status> {
         // SAFETY: forwarded array contract.
         let data = unsafe { self.slice("serializedState", bytes, size)? };
         let model = match Model::from_bytes(data).and_then(|m| check_restored(&m).map(|()| m)) {
@@ -832,7 +919,9 @@ fn check_restored(model: &Model) -> Result<(), String> {
         let value = model.get(index).unwrap_or(f64::NAN);
         match var.causality {
             Causality::Parameter | Causality::Input => var.check(value)?,
-            Causality::Output if !value.is_finite() => return Err(format!("the state's {} = {value} is not finite", var.name)),
+            Causality::Output if !value.is_finite() => {
+                return Err(format!("the state's {} = {value} is not finite", var.name))
+            }
             _ => {}
         }
     }
@@ -844,7 +933,12 @@ mod tests {
     use super::*;
     use std::sync::Mutex;
 
-    extern "C" fn collect(env: *mut c_void, _status: c_int, _category: *const c_char, message: *const c_char) {
+    extern "C" fn collect(
+        env: *mut c_void,
+        _status: c_int,
+        _category: *const c_char,
+        message: *const c_char,
+    ) {
         // SAFETY: env is the Mutex below; message is a C string from the FMU.
         let log = unsafe { &*(env as *const Mutex<Vec<String>>) };
         log.lock().unwrap().push(unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned());
@@ -857,15 +951,29 @@ mod tests {
         let token = CString::new(crate::variables::interface_token()).unwrap();
         // SAFETY: valid C strings and callback.
         let inst = unsafe {
-            instantiate(Version::Fmi3, "fmi3InstantiateCoSimulation", c"p".as_ptr(), token.as_ptr(), Logger::Fmi3(collect, env), false, None)
+            instantiate(
+                Version::Fmi3,
+                "fmi3InstantiateCoSimulation",
+                c"p".as_ptr(),
+                token.as_ptr(),
+                Logger::Fmi3(collect, env),
+                false,
+                None,
+            )
         };
         assert!(!inst.is_null());
         // SAFETY: `inst` is live.
-        let status = unsafe { with_instance(inst, Version::Fmi3, "fmi3Boom", ANY_STATE, |_| panic!("boom {}", 42)) };
+        let status = unsafe {
+            with_instance(inst, Version::Fmi3, "fmi3Boom", ANY_STATE, |_| panic!("boom {}", 42))
+        };
         assert_eq!(status, Status::Error);
-        assert!(log.lock().unwrap().iter().any(|m| m == "fmi3Boom: internal error: boom 42"), "{log:?}");
+        assert!(
+            log.lock().unwrap().iter().any(|m| m == "fmi3Boom: internal error: boom 42"),
+            "{log:?}"
+        );
         // SAFETY: still live.
-        let status = unsafe { with_instance(inst, Version::Fmi3, "fmi3Reset", ANY_STATE, |i| i.reset()) };
+        let status =
+            unsafe { with_instance(inst, Version::Fmi3, "fmi3Reset", ANY_STATE, |i| i.reset()) };
         assert_eq!(status, Status::OK);
         // SAFETY: freed once.
         unsafe { free_instance(inst, Version::Fmi3, "fmi3FreeInstance") };

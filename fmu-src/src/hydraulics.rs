@@ -114,7 +114,9 @@ pub struct CylinderParams {
 impl Default for CylinderParams {
     /// The start values of the variable table.
     fn default() -> Self {
-        let start = |name: &str| VARIABLES[index_of(name).expect("cylinder parameter in the variable table")].start;
+        let start = |name: &str| {
+            VARIABLES[index_of(name).expect("cylinder parameter in the variable table")].start
+        };
         CylinderParams::from_lookup(start, start("valve.K3")).expect("table start values are valid")
     }
 }
@@ -203,7 +205,8 @@ impl CylinderParams {
     /// Single-value ranges (from the variable table) and the rules between parameters.
     pub fn validate(&self) -> Result<(), String> {
         for (name, value) in PARAMETER_NAMES.iter().zip(self.values()) {
-            VARIABLES[index_of(name).expect("cylinder parameter in the variable table")].check(value)?;
+            VARIABLES[index_of(name).expect("cylinder parameter in the variable table")]
+                .check(value)?;
         }
         if !(self.k3.is_finite() && self.k3 > 0.0) {
             return Err(format!("valve.K3 = {} rejected: must be positive", self.k3));
@@ -300,7 +303,12 @@ fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
 }
 
 /// Actual port flows `(Q_A into A, Q_B out of B)` [m3/s] for spool position `x_s`.
-pub fn port_flows(params: &CylinderParams, state: &CylinderState, x_s: f64, p_supply: f64) -> (f64, f64) {
+pub fn port_flows(
+    params: &CylinderParams,
+    state: &CylinderState,
+    x_s: f64,
+    p_supply: f64,
+) -> (f64, f64) {
     // Chamber pressures below the floor (rounding only) are read at the floor.
     let p_a = state.p_a.max(params.p_cavitation);
     let p_b = state.p_b.max(params.p_cavitation);
@@ -308,10 +316,16 @@ pub fn port_flows(params: &CylinderParams, state: &CylinderState, x_s: f64, p_su
     let lam = params.dp_laminar;
     if x_s >= 0.0 {
         // P -> A and B -> T open.
-        (gain * regularised_sqrt(p_supply - p_a, lam), gain * regularised_sqrt(p_b - params.p_tank, lam))
+        (
+            gain * regularised_sqrt(p_supply - p_a, lam),
+            gain * regularised_sqrt(p_b - params.p_tank, lam),
+        )
     } else {
         // A -> T and P -> B open (gain < 0 turns the flows around).
-        (gain * regularised_sqrt(p_a - params.p_tank, lam), gain * regularised_sqrt(p_supply - p_b, lam))
+        (
+            gain * regularised_sqrt(p_a - params.p_tank, lam),
+            gain * regularised_sqrt(p_supply - p_b, lam),
+        )
     }
 }
 
@@ -351,7 +365,13 @@ fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64) -> f64 {
 const MIN_VOLUME_FRACTION: f64 = 1e-3;
 
 /// `[p_A', p_B', x', v']` for spool position `x_s`.
-pub fn derivatives(params: &CylinderParams, state: &CylinderState, x_s: f64, p_supply: f64, f_ext: f64) -> [f64; 4] {
+pub fn derivatives(
+    params: &CylinderParams,
+    state: &CylinderState,
+    x_s: f64,
+    p_supply: f64,
+    f_ext: f64,
+) -> [f64; 4] {
     let (area_a, area_b) = (params.area_a(), params.area_b());
     let half = 0.5 * params.stroke;
     let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
@@ -389,15 +409,23 @@ fn regularised_sqrt_slope(dp: f64, dp_lam: f64) -> f64 {
 /// difference would see it), except at the contact switching surfaces of the end stop where it
 /// is the side the state is on (no contact at exactly zero penetration or zero contact force).
 #[allow(clippy::needless_range_loop)]
-fn linearise(params: &CylinderParams, y: &Vec4, x_s: f64, p_supply: f64, f_ext: f64) -> (Vec4, Mat4, Vec4) {
+fn linearise(
+    params: &CylinderParams,
+    y: &Vec4,
+    x_s: f64,
+    p_supply: f64,
+    f_ext: f64,
+) -> (Vec4, Mat4, Vec4) {
     let (p_a_raw, p_b_raw, x, v) = (y[PA], y[PB], y[X], y[V]);
     let (area_a, area_b) = (params.area_a(), params.area_b());
     let half = 0.5 * params.stroke;
     let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
     let volume_a_free = params.v_dead + area_a * (x + half);
     let volume_b_free = params.v_dead + area_b * (half - x);
-    let (volume_a, dva_dx) = if volume_a_free >= min_volume { (volume_a_free, area_a) } else { (min_volume, 0.0) };
-    let (volume_b, dvb_dx) = if volume_b_free >= min_volume { (volume_b_free, -area_b) } else { (min_volume, 0.0) };
+    let (volume_a, dva_dx) =
+        if volume_a_free >= min_volume { (volume_a_free, area_a) } else { (min_volume, 0.0) };
+    let (volume_b, dvb_dx) =
+        if volume_b_free >= min_volume { (volume_b_free, -area_b) } else { (min_volume, 0.0) };
     // Port flows, as `port_flows`, with their slopes in the chamber pressures and in x_s.
     let p_a = p_a_raw.max(params.p_cavitation);
     let p_b = p_b_raw.max(params.p_cavitation);
@@ -408,10 +436,20 @@ fn linearise(params: &CylinderParams, y: &Vec4, x_s: f64, p_supply: f64, f_ext: 
     let lam = params.dp_laminar;
     let (r_a, dra_dpa, r_b, drb_dpb) = if x_s >= 0.0 {
         let (da, db) = (p_supply - p_a, p_b - params.p_tank);
-        (regularised_sqrt(da, lam), -regularised_sqrt_slope(da, lam), regularised_sqrt(db, lam), regularised_sqrt_slope(db, lam))
+        (
+            regularised_sqrt(da, lam),
+            -regularised_sqrt_slope(da, lam),
+            regularised_sqrt(db, lam),
+            regularised_sqrt_slope(db, lam),
+        )
     } else {
         let (da, db) = (p_a - params.p_tank, p_supply - p_b);
-        (regularised_sqrt(da, lam), regularised_sqrt_slope(da, lam), regularised_sqrt(db, lam), -regularised_sqrt_slope(db, lam))
+        (
+            regularised_sqrt(da, lam),
+            regularised_sqrt_slope(da, lam),
+            regularised_sqrt(db, lam),
+            -regularised_sqrt_slope(db, lam),
+        )
     };
     let (q_a, q_b) = (gain * r_a, gain * r_b);
     let (dqa_dpa, dqb_dpb) = (gain * dra_dpa * clamp_a, gain * drb_dpb * clamp_b);
@@ -441,17 +479,28 @@ fn linearise(params: &CylinderParams, y: &Vec4, x_s: f64, p_supply: f64, f_ext: 
     let stribeck = (v / params.v_stribeck).powi(2);
     let decay = (-stribeck).exp();
     let dry = params.f_coulomb + (params.f_static - params.f_coulomb) * decay;
-    let ddry_dv = (params.f_static - params.f_coulomb) * decay * (-2.0 * v / (params.v_stribeck * params.v_stribeck));
+    let ddry_dv = (params.f_static - params.f_coulomb)
+        * decay
+        * (-2.0 * v / (params.v_stribeck * params.v_stribeck));
     let th = (v / params.v_friction_smooth).tanh();
     let friction = dry * th + params.b_viscous * v;
-    let dfriction_dv = ddry_dv * th + dry * (1.0 - th * th) / params.v_friction_smooth + params.b_viscous;
+    let dfriction_dv =
+        ddry_dv * th + dry * (1.0 - th * th) / params.v_friction_smooth + params.b_viscous;
     let (beyond_top, beyond_bottom) = (x - half, -half - x);
     let (contact, dcontact_dx, dcontact_dv) = if beyond_top > 0.0 {
         let s = params.k_endstop * beyond_top + params.c_endstop * v;
-        if s > 0.0 { (-s, -params.k_endstop, -params.c_endstop) } else { (0.0, 0.0, 0.0) }
+        if s > 0.0 {
+            (-s, -params.k_endstop, -params.c_endstop)
+        } else {
+            (0.0, 0.0, 0.0)
+        }
     } else if beyond_bottom > 0.0 {
         let s = params.k_endstop * beyond_bottom - params.c_endstop * v;
-        if s > 0.0 { (s, -params.k_endstop, -params.c_endstop) } else { (0.0, 0.0, 0.0) }
+        if s > 0.0 {
+            (s, -params.k_endstop, -params.c_endstop)
+        } else {
+            (0.0, 0.0, 0.0)
+        }
     } else {
         (0.0, 0.0, 0.0)
     };
@@ -480,7 +529,12 @@ fn linearise(params: &CylinderParams, y: &Vec4, x_s: f64, p_supply: f64, f_ext: 
 }
 
 /// All outputs at a state.
-pub fn outputs(params: &CylinderParams, state: &CylinderState, x_s: f64, p_supply: f64) -> CylinderOutputs {
+pub fn outputs(
+    params: &CylinderParams,
+    state: &CylinderState,
+    x_s: f64,
+    p_supply: f64,
+) -> CylinderOutputs {
     let (q_a, q_b) = port_flows(params, state, x_s, p_supply);
     CylinderOutputs {
         q_a,
@@ -515,7 +569,8 @@ struct Rosenbrock<const S: usize> {
 /// Rodas4 (Hairer & Wanner's `rodas.f`, METH = 1): order 4, embedded order 3, stiffly
 /// accurate, L-stable; 6 stages, 5 model evaluations besides the linearisation point.
 const RODAS4: Rosenbrock<6> = {
-    const A6: [f64; 6] = [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.687886036105895, 1.0, 0.0];
+    const A6: [f64; 6] =
+        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.687886036105895, 1.0, 0.0];
     Rosenbrock {
         gamma: 0.25,
         nodes: [0.0, 0.386, 0.21, 0.63, 1.0, 1.0],
@@ -535,7 +590,14 @@ const RODAS4: Rosenbrock<6> = {
             [-2.430093356833875, -0.2063599157091915, 0.0, 0.0, 0.0, 0.0],
             [-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0.0, 0.0, 0.0],
             [7.496443313967647, -10.24680431464352, -33.99990352819905, 11.7089089320616, 0.0, 0.0],
-            [8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136, -6.058818238834054, 0.0],
+            [
+                8.083246795921522,
+                -7.981132988064893,
+                -31.52159432874371,
+                16.31930543123136,
+                -6.058818238834054,
+                0.0,
+            ],
         ],
         m: [A6[0], A6[1], A6[2], A6[3], 1.0, 1.0],
         e: [0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
@@ -643,7 +705,12 @@ impl SpoolPath {
         let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
         let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
         let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
-        a[0] * h00 + h * a[1] * h10 + h * h * a[2] * h20 + b[0] * h01 + h * b[1] * h11 + h * h * b[2] * h21
+        a[0] * h00
+            + h * a[1] * h10
+            + h * h * a[2] * h20
+            + b[0] * h01
+            + h * b[1] * h11
+            + h * h * b[2] * h21
     }
 
     /// d/dtau of [`SpoolPath::position`].
@@ -722,7 +789,9 @@ pub fn advance_with_rate(
     let mut landings = 0;
     loop {
         if stats.accepted + stats.rejected >= MAX_STEPS_PER_CALL {
-            return Err(format!("hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {h} s"));
+            return Err(format!(
+                "hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {h} s"
+            ));
         }
         // The last step lands exactly on h; remember the untruncated size for the next call.
         let wanted = step;
@@ -761,7 +830,8 @@ pub fn advance_with_rate(
         // its result only if its own error estimate passes; else Rodas4 from the same
         // linearisation. The controller only ever learns from Rodas4 steps.
         if last && step * 2.0 <= wanted {
-            let (y3, err3) = rosenbrock_step(&RODAS3, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
+            let (y3, err3) =
+                rosenbrock_step(&RODAS3, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
             if err3 <= 1.0 {
                 stats.accepted += 1;
                 stats.cheap += 1;
@@ -772,7 +842,8 @@ pub fn advance_with_rate(
             }
             stats.cheap_failed += 1;
         }
-        let (y_new, err) = rosenbrock_step(&RODAS4, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
+        let (y_new, err) =
+            rosenbrock_step(&RODAS4, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
         if err <= 1.0 {
             stats.accepted += 1;
             lin = None;
@@ -791,7 +862,8 @@ pub fn advance_with_rate(
             let mut factor = (err.powf(0.25) / SAFETY).clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR);
             // Gustafsson: also use the trend of the error between accepted steps.
             if work.h_accepted > 0.0 {
-                let predictive = (work.h_accepted / step) * (err * err / work.err_accepted).powf(0.25) / SAFETY;
+                let predictive =
+                    (work.h_accepted / step) * (err * err / work.err_accepted).powf(0.25) / SAFETY;
                 factor = factor.max(predictive.clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR));
             }
             work.h_accepted = step;
@@ -828,7 +900,12 @@ const MAX_LANDINGS: u32 = 4;
 /// linearisation). Switches: `x` reaching `+-stroke/2` from outside the stop (the contact
 /// force jumps in by `c |v|`), and inside a stop the contact force `k d + c d'` crossing zero
 /// (separation or re-engagement: a kink). Leaving a stop is smooth (the force is already 0).
-fn next_contact_switch(params: &CylinderParams, y: &Vec4, lin: &Linearisation, span: f64) -> Option<f64> {
+fn next_contact_switch(
+    params: &CylinderParams,
+    y: &Vec4,
+    lin: &Linearisation,
+    span: f64,
+) -> Option<f64> {
     let half = 0.5 * params.stroke;
     let (x, v, a) = (y[X], y[V], lin.f0[V]);
     let jerk = (0..N_STATES).map(|j| lin.jac[V][j] * lin.f0[j]).sum::<f64>() + lin.f_t[V];
@@ -897,7 +974,13 @@ struct Model<'a, S: Fn(f64) -> (f64, f64)> {
 impl<S: Fn(f64) -> (f64, f64)> Model<'_, S> {
     fn f(&self, tau: f64, y: &Vec4, stats: &mut Stats) -> Vec4 {
         stats.function_evaluations += 1;
-        derivatives(self.params, &CylinderState::from_array(y), (self.spool)(tau).0, self.p_supply, self.f_ext)
+        derivatives(
+            self.params,
+            &CylinderState::from_array(y),
+            (self.spool)(tau).0,
+            self.p_supply,
+            self.f_ext,
+        )
     }
 
     /// `f`, `df/dy` and `df/dt` at `(tau, y)`, analytic.
@@ -1049,7 +1132,8 @@ mod tests {
         let calls = ((t_end - t_start) / interval).round() as usize;
         for n in 0..calls {
             let t = t_start + n as f64 * interval;
-            let s = advance(params, state, interval, p_supply, f_ext, |tau| x_s(t + tau), work).unwrap();
+            let s = advance(params, state, interval, p_supply, f_ext, |tau| x_s(t + tau), work)
+                .unwrap();
             total.accepted += s.accepted;
             total.rejected += s.rejected;
             total.function_evaluations += s.function_evaluations;
@@ -1064,7 +1148,13 @@ mod tests {
         (total, most_steps)
     }
 
-    fn jacobian(params: &CylinderParams, state: &CylinderState, x_s: f64, p_supply: f64, f_ext: f64) -> nalgebra::Matrix4<f64> {
+    fn jacobian(
+        params: &CylinderParams,
+        state: &CylinderState,
+        x_s: f64,
+        p_supply: f64,
+        f_ext: f64,
+    ) -> nalgebra::Matrix4<f64> {
         let y = state.to_array();
         let f0 = derivatives(params, state, x_s, p_supply, f_ext);
         let mut jac = nalgebra::Matrix4::zeros();
@@ -1072,7 +1162,8 @@ mod tests {
             let delta = 1e-7 * y[j].abs().max(STATE_SCALE[j]);
             let mut shifted = y;
             shifted[j] += delta;
-            let fj = derivatives(params, &CylinderState::from_array(&shifted), x_s, p_supply, f_ext);
+            let fj =
+                derivatives(params, &CylinderState::from_array(&shifted), x_s, p_supply, f_ext);
             for i in 0..4 {
                 jac[(i, j)] = (fj[i] - f0[i]) / delta;
             }
@@ -1088,7 +1179,8 @@ mod tests {
         }
         let below = regularised_sqrt(lam * (1.0 - 1e-9), lam);
         assert!((below - lam.sqrt()).abs() < 1e-9 * lam.sqrt());
-        let slope = |dp: f64| (regularised_sqrt(dp + 1e-3, lam) - regularised_sqrt(dp - 1e-3, lam)) / 2e-3;
+        let slope =
+            |dp: f64| (regularised_sqrt(dp + 1e-3, lam) - regularised_sqrt(dp - 1e-3, lam)) / 2e-3;
         assert!((slope(lam - 1.0) - slope(lam + 1.0)).abs() < 1e-4 * slope(lam + 1.0));
         assert!((slope(0.0) - 1.25 / lam.sqrt()).abs() < 1e-9);
         assert_eq!(regularised_sqrt(-3e4, lam), -regularised_sqrt(3e4, lam));
@@ -1097,7 +1189,10 @@ mod tests {
     #[test]
     fn parameters_come_from_the_table_and_validation_names_the_variable() {
         let defaults = CylinderParams::default();
-        assert_eq!((defaults.bore, defaults.mass, defaults.k_endstop, defaults.p_cavitation), (0.016, 5.0, 1e8, -0.9e5));
+        assert_eq!(
+            (defaults.bore, defaults.mass, defaults.k_endstop, defaults.p_cavitation),
+            (0.016, 5.0, 1e8, -0.9e5)
+        );
         let bad = CylinderParams { mass: 0.0, ..defaults };
         assert!(bad.validate().unwrap_err().contains("cylinder.mass"));
         let bad = CylinderParams { rod: 0.02, ..defaults };
@@ -1138,8 +1233,19 @@ mod tests {
             assert!(d[3].abs() * p.mass < 1e-12 * stall, "{d:?}");
             let mut s = s0;
             let mut work = IntegratorMemory::default();
-            let (stats, _) = simulate(&p, &mut s, &mut work, &|_| 0.0, (P_RATED, f_ext), (0.0, 0.01, 1e-4), |_, _| {});
-            assert!(s.x.abs() < 1e-12 && (s.p_a - s0.p_a).abs() < 1e-3 && (s.p_b - s0.p_b).abs() < 1e-3, "{s:?}");
+            let (stats, _) = simulate(
+                &p,
+                &mut s,
+                &mut work,
+                &|_| 0.0,
+                (P_RATED, f_ext),
+                (0.0, 0.01, 1e-4),
+                |_, _| {},
+            );
+            assert!(
+                s.x.abs() < 1e-12 && (s.p_a - s0.p_a).abs() < 1e-3 && (s.p_b - s0.p_b).abs() < 1e-3,
+                "{s:?}"
+            );
             // Cheap at rest: after the first call's step-size ramp, one step per call.
             assert!(stats.accepted <= 100 + 10, "{stats:?}");
         }
@@ -1173,7 +1279,11 @@ mod tests {
         let (mut lo, mut hi) = (1e-3, 2.0);
         for _ in 0..100 {
             let mid = 0.5 * (lo + hi);
-            if residual(mid) > 0.0 { lo = mid } else { hi = mid }
+            if residual(mid) > 0.0 {
+                lo = mid
+            } else {
+                hi = mid
+            }
         }
         assert!((s.v - lo).abs() < 1e-4 * lo, "v = {} vs steady {lo}", s.v);
         // Unequal areas: Q_A is not K3 x_s even without load (about 1.28 K3 x_s; 1.19 here
@@ -1201,7 +1311,10 @@ mod tests {
         });
         let displaced = p.area_a() * (s.x - s0.x);
         let residual = inflow - displaced - compressed;
-        assert!(residual.abs() < 1e-3 * inflow.abs(), "in {inflow}, displaced {displaced}, compressed {compressed}");
+        assert!(
+            residual.abs() < 1e-3 * inflow.abs(),
+            "in {inflow}, displaced {displaced}, compressed {compressed}"
+        );
         assert!(compressed.abs() > 1e-9, "the test should see compression: {compressed}");
     }
 
@@ -1220,13 +1333,21 @@ mod tests {
             let mut work = IntegratorMemory::default();
             let (mut x_max, mut p_a_max, mut v_impact) = (f64::MIN, f64::MIN, 0.0);
             let t_end = 0.1 * 0.1e-3 / x_s + 0.05;
-            simulate(&p, &mut s, &mut work, &|_| x_s, (P_RATED, 0.0), (0.0, t_end, 1e-5), |_, s| {
-                if x_max < p.stroke / 2.0 {
-                    v_impact = s.v;
-                }
-                x_max = x_max.max(s.x);
-                p_a_max = p_a_max.max(s.p_a);
-            });
+            simulate(
+                &p,
+                &mut s,
+                &mut work,
+                &|_| x_s,
+                (P_RATED, 0.0),
+                (0.0, t_end, 1e-5),
+                |_, s| {
+                    if x_max < p.stroke / 2.0 {
+                        v_impact = s.v;
+                    }
+                    x_max = x_max.max(s.x);
+                    p_a_max = p_a_max.max(s.p_a);
+                },
+            );
             let penetration_max = x_max - p.stroke / 2.0;
             assert!(penetration_max > 0.0, "x_s {x_s}: never reached the stop: {x_max}");
             // Energy bound with the stall force still pushing: k d^2/2 <= m v^2/2 + F d.
@@ -1242,9 +1363,15 @@ mod tests {
                 assert!(p_a_max <= 1.1 * P_RATED, "x_s {x_s}: p_A max {p_a_max}");
             }
             // Settled: A at supply, B at tank, pressed in by the stall force: d = p_S A_A / k.
-            assert!((s.p_a - P_RATED).abs() < 1e-6 * P_RATED && s.p_b.abs() < 1e-6 * P_RATED, "{s:?}");
+            assert!(
+                (s.p_a - P_RATED).abs() < 1e-6 * P_RATED && s.p_b.abs() < 1e-6 * P_RATED,
+                "{s:?}"
+            );
             let penetration = s.x - p.stroke / 2.0;
-            assert!((penetration - static_penetration).abs() < 1e-3 * static_penetration, "{penetration}");
+            assert!(
+                (penetration - static_penetration).abs() < 1e-3 * static_penetration,
+                "{penetration}"
+            );
         }
     }
 
@@ -1256,14 +1383,25 @@ mod tests {
         let mut work = IntegratorMemory::default();
         let mut p_min = f64::MAX;
         let mut time_at_floor = 0.0;
-        let (stats, _) = simulate(&p, &mut s, &mut work, &|_| -0.5e-3, (P_RATED, f_ext), (0.0, 0.05, 1e-4), |_, s| {
-            p_min = p_min.min(s.p_a).min(s.p_b);
-            if s.p_b < p.p_cavitation + 0.01 * p.dp_cavitation_band {
-                time_at_floor += 1e-4;
-            }
-        });
+        let (stats, _) = simulate(
+            &p,
+            &mut s,
+            &mut work,
+            &|_| -0.5e-3,
+            (P_RATED, f_ext),
+            (0.0, 0.05, 1e-4),
+            |_, s| {
+                p_min = p_min.min(s.p_a).min(s.p_b);
+                if s.p_b < p.p_cavitation + 0.01 * p.dp_cavitation_band {
+                    time_at_floor += 1e-4;
+                }
+            },
+        );
         assert!(p_min >= p.p_cavitation, "p_min = {p_min}");
-        assert!(time_at_floor > 1e-3, "the case must actually cavitate: {time_at_floor} s at the floor");
+        assert!(
+            time_at_floor > 1e-3,
+            "the case must actually cavitate: {time_at_floor} s at the floor"
+        );
         // The floor holds in the ODE itself, not only by the post-step clamp.
         assert!(stats.floor_clamp < 1.0, "clamped by {} Pa", stats.floor_clamp);
         assert!(s.x < -p.stroke / 2.0 + 1e-4 && s.x > -p.stroke / 2.0 - 1e-3, "{s:?}");
@@ -1277,7 +1415,15 @@ mod tests {
         let run = |interval: f64, rtol: f64| {
             let mut s = equilibrium(&p, P_RATED, 200.0);
             let mut work = IntegratorMemory::new(rtol);
-            simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 200.0), (0.0, 0.06, interval), |_, _| {});
+            simulate(
+                &p,
+                &mut s,
+                &mut work,
+                &x_s,
+                (P_RATED, 200.0),
+                (0.0, 0.06, interval),
+                |_, _| {},
+            );
             s
         };
         let reference = run(1e-3, 1e-11);
@@ -1304,7 +1450,15 @@ mod tests {
         simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 100.0), (0.005, 0.01, 1e-3), |_, _| {});
         let mut again = CylinderState::from_array(&saved_state);
         let mut again_work = IntegratorMemory::from_array(&saved_memory);
-        simulate(&p, &mut again, &mut again_work, &x_s, (P_RATED, 100.0), (0.005, 0.01, 1e-3), |_, _| {});
+        simulate(
+            &p,
+            &mut again,
+            &mut again_work,
+            &x_s,
+            (P_RATED, 100.0),
+            (0.005, 0.01, 1e-3),
+            |_, _| {},
+        );
         assert_eq!(again, s);
         assert_eq!(again_work, work);
         // A refused step leaves the state alone.
@@ -1319,23 +1473,48 @@ mod tests {
         let rest = equilibrium(&p, P_RATED, 0.0);
         let mut moving = rest;
         let mut work = IntegratorMemory::default();
-        simulate(&p, &mut moving, &mut work, &|_| X_S_RATED, (P_RATED, 0.0), (0.0, 0.02, 1e-4), |_, _| {});
+        simulate(
+            &p,
+            &mut moving,
+            &mut work,
+            &|_| X_S_RATED,
+            (P_RATED, 0.0),
+            (0.0, 0.02, 1e-4),
+            |_, _| {},
+        );
         let mut at_stop = rest;
         let mut work = IntegratorMemory::default();
-        simulate(&p, &mut at_stop, &mut work, &|_| 0.2e-3, (P_RATED, 0.0), (0.0, 0.1, 1e-4), |_, _| {});
+        simulate(
+            &p,
+            &mut at_stop,
+            &mut work,
+            &|_| 0.2e-3,
+            (P_RATED, 0.0),
+            (0.0, 0.1, 1e-4),
+            |_, _| {},
+        );
         let cases = [
             ("at rest, x_s = 0", rest, 0.0),
             ("at rest, x_s = 1 um", rest, 1e-6),
             ("moving at rated flow", moving, X_S_RATED),
             ("held at the end stop, x_s = 0.2 mm", at_stop, 0.2e-3),
             ("at the stop, valve closed", at_stop, 0.0),
-            ("impact: 50 um into the stop at 0.5 m/s", CylinderState { x: p.stroke / 2.0 + 5e-5, v: 0.5, ..moving }, X_S_RATED),
-            ("near supply, laminar port (p_S - p_A = 1 bar)", CylinderState { p_a: P_RATED - 1e5, ..rest }, 1e-3),
+            (
+                "impact: 50 um into the stop at 0.5 m/s",
+                CylinderState { x: p.stroke / 2.0 + 5e-5, v: 0.5, ..moving },
+                X_S_RATED,
+            ),
+            (
+                "near supply, laminar port (p_S - p_A = 1 bar)",
+                CylinderState { p_a: P_RATED - 1e5, ..rest },
+                1e-3,
+            ),
         ];
         let mut stiffest = [0.0; 7];
         for (k, (name, s, x_s)) in cases.iter().enumerate() {
             let eig = jacobian(&p, s, *x_s, P_RATED, 0.0).complex_eigenvalues();
-            let text: Vec<String> = eig.iter().map(|l| format!("{:.3e}{:+.3e}i", l.re, l.im)).collect();
+            let text: Vec<String> =
+                eig.iter().map(|l| format!("{:.3e}{:+.3e}i", l.re, l.im)).collect();
             println!("{name:40} x = {:+.4} v = {:+.3}: {}", s.x, s.v, text.join(", "));
             stiffest[k] = eig.iter().map(|l| l.norm()).fold(0.0, f64::max);
             assert!(eig.iter().all(|l| l.re < 1e3), "no fast growing mode: {text:?}");
@@ -1354,15 +1533,60 @@ mod tests {
         let half = p.stroke / 2.0;
         let band = p.p_cavitation + 0.3 * p.dp_cavitation_band;
         let cases = [
-            ("moving at rated flow", CylinderState { x: 0.01, v: 1.2, p_a: 5.0e6, p_b: 2.0e6 }, X_S_RATED, 0.0),
-            ("retracting, x_s < 0", CylinderState { x: -0.01, v: -0.8, p_a: 1.0e6, p_b: 4.0e6 }, -1e-4, 300.0),
-            ("laminar port near supply (0.4 bar)", CylinderState { p_a: P_RATED - 0.4e5, ..rest }, 1e-3, 0.0),
-            ("laminar port at tank, x_s < 0 (0.3 bar)", CylinderState { p_a: 0.3e5, ..rest }, -2e-4, 0.0),
-            ("B emptying in the cavitation band", CylinderState { p_b: band, v: -0.3, x: -0.02, p_a: 1e6 }, -0.5e-3, -6000.0),
-            ("A emptying in the cavitation band", CylinderState { p_a: band, v: 0.3, x: 0.02, p_b: 1e6 }, 0.5e-3, 6000.0),
-            ("impact on the + stop (50 um, 0.5 m/s)", CylinderState { x: half + 5e-5, v: 0.5, ..rest }, X_S_RATED, 0.0),
-            ("pressed on the + stop", CylinderState { x: half + 1.4e-5, v: 1e-6, p_a: P_RATED - 10.0, p_b: 10.0 }, 0.2e-3, 0.0),
-            ("impact on the - stop (30 um, -0.4 m/s)", CylinderState { x: -half - 3e-5, v: -0.4, ..rest }, -X_S_RATED, 0.0),
+            (
+                "moving at rated flow",
+                CylinderState { x: 0.01, v: 1.2, p_a: 5.0e6, p_b: 2.0e6 },
+                X_S_RATED,
+                0.0,
+            ),
+            (
+                "retracting, x_s < 0",
+                CylinderState { x: -0.01, v: -0.8, p_a: 1.0e6, p_b: 4.0e6 },
+                -1e-4,
+                300.0,
+            ),
+            (
+                "laminar port near supply (0.4 bar)",
+                CylinderState { p_a: P_RATED - 0.4e5, ..rest },
+                1e-3,
+                0.0,
+            ),
+            (
+                "laminar port at tank, x_s < 0 (0.3 bar)",
+                CylinderState { p_a: 0.3e5, ..rest },
+                -2e-4,
+                0.0,
+            ),
+            (
+                "B emptying in the cavitation band",
+                CylinderState { p_b: band, v: -0.3, x: -0.02, p_a: 1e6 },
+                -0.5e-3,
+                -6000.0,
+            ),
+            (
+                "A emptying in the cavitation band",
+                CylinderState { p_a: band, v: 0.3, x: 0.02, p_b: 1e6 },
+                0.5e-3,
+                6000.0,
+            ),
+            (
+                "impact on the + stop (50 um, 0.5 m/s)",
+                CylinderState { x: half + 5e-5, v: 0.5, ..rest },
+                X_S_RATED,
+                0.0,
+            ),
+            (
+                "pressed on the + stop",
+                CylinderState { x: half + 1.4e-5, v: 1e-6, p_a: P_RATED - 10.0, p_b: 10.0 },
+                0.2e-3,
+                0.0,
+            ),
+            (
+                "impact on the - stop (30 um, -0.4 m/s)",
+                CylinderState { x: -half - 3e-5, v: -0.4, ..rest },
+                -X_S_RATED,
+                0.0,
+            ),
             ("friction near v = 0 (+30 um/s)", CylinderState { v: 3e-5, ..rest }, 1e-6, 0.0),
             ("friction near v = 0 (-80 um/s)", CylinderState { v: -8e-5, ..rest }, -3e-6, 50.0),
             ("Stribeck region (5 mm/s)", CylinderState { v: 5e-3, ..rest }, 1e-5, 0.0),
@@ -1373,29 +1597,51 @@ mod tests {
             let params = if name == "with leakage" { leaky } else { p };
             let y = s.to_array();
             let (f, jac, f_xs) = linearise(&params, &y, x_s, P_RATED, f_ext);
-            assert_eq!(f, derivatives(&params, &s, x_s, P_RATED, f_ext), "{name}: f differs from derivatives()");
+            assert_eq!(
+                f,
+                derivatives(&params, &s, x_s, P_RATED, f_ext),
+                "{name}: f differs from derivatives()"
+            );
             let mut worst: f64 = 0.0;
             for j in 0..4 {
                 let delta = 1e-7 * STATE_SCALE[j];
                 let (mut up, mut down) = (y, y);
                 up[j] += delta;
                 down[j] -= delta;
-                let f_up = derivatives(&params, &CylinderState::from_array(&up), x_s, P_RATED, f_ext);
-                let f_down = derivatives(&params, &CylinderState::from_array(&down), x_s, P_RATED, f_ext);
+                let f_up =
+                    derivatives(&params, &CylinderState::from_array(&up), x_s, P_RATED, f_ext);
+                let f_down =
+                    derivatives(&params, &CylinderState::from_array(&down), x_s, P_RATED, f_ext);
                 for i in 0..4 {
-                    let fd = (f_up[i] - f_down[i]) / (2.0 * delta) * STATE_SCALE[j] / STATE_SCALE[i];
+                    let fd =
+                        (f_up[i] - f_down[i]) / (2.0 * delta) * STATE_SCALE[j] / STATE_SCALE[i];
                     let an = jac[i][j] * STATE_SCALE[j] / STATE_SCALE[i];
-                    let row: f64 = (0..4).map(|c| (jac[i][c] * STATE_SCALE[c] / STATE_SCALE[i]).abs()).fold(0.0, f64::max);
+                    let row: f64 = (0..4)
+                        .map(|c| (jac[i][c] * STATE_SCALE[c] / STATE_SCALE[i]).abs())
+                        .fold(0.0, f64::max);
                     let e = (an - fd).abs() / (an.abs() + row);
                     worst = worst.max(e);
-                    assert!(e < 1e-6, "{name}: J[{i}][{j}] analytic {} vs difference {}", jac[i][j], fd * STATE_SCALE[i] / STATE_SCALE[j]);
+                    assert!(
+                        e < 1e-6,
+                        "{name}: J[{i}][{j}] analytic {} vs difference {}",
+                        jac[i][j],
+                        fd * STATE_SCALE[i] / STATE_SCALE[j]
+                    );
                 }
             }
             let dx = 1e-7 * x_s.abs().max(1e-5);
-            let (f_up, f_down) = (derivatives(&params, &s, x_s + dx, P_RATED, f_ext), derivatives(&params, &s, x_s - dx, P_RATED, f_ext));
+            let (f_up, f_down) = (
+                derivatives(&params, &s, x_s + dx, P_RATED, f_ext),
+                derivatives(&params, &s, x_s - dx, P_RATED, f_ext),
+            );
             for i in 0..4 {
                 let fd = (f_up[i] - f_down[i]) / (2.0 * dx);
-                assert!((f_xs[i] - fd).abs() <= 1e-6 * fd.abs().max(1e-3 * f_xs[0].abs().max(f_xs[1].abs())), "{name}: df/dx_s[{i}] {} vs {fd}", f_xs[i]);
+                assert!(
+                    (f_xs[i] - fd).abs()
+                        <= 1e-6 * fd.abs().max(1e-3 * f_xs[0].abs().max(f_xs[1].abs())),
+                    "{name}: df/dx_s[{i}] {} vs {fd}",
+                    f_xs[i]
+                );
             }
             println!("{name:42} largest scaled Jacobian difference {worst:.1e}");
         }
@@ -1407,9 +1653,16 @@ mod tests {
         for tau in [0.0, 0.1, 0.5, 0.77, 1.0].map(|s| s * path.h) {
             let d = 1e-6 * path.h;
             let fd = (path.position(tau + d) - path.position(tau - d)) / (2.0 * d);
-            assert!((path.rate(tau) - fd).abs() < 1e-8 * 0.3, "tau {tau}: {} vs {fd}", path.rate(tau));
+            assert!(
+                (path.rate(tau) - fd).abs() < 1e-8 * 0.3,
+                "tau {tau}: {} vs {fd}",
+                path.rate(tau)
+            );
         }
-        assert!((path.position(0.0) - path.start[0]).abs() < 1e-18 && (path.position(path.h) - path.end[0]).abs() < 1e-18);
+        assert!(
+            (path.position(0.0) - path.start[0]).abs() < 1e-18
+                && (path.position(path.h) - path.end[0]).abs() < 1e-18
+        );
         assert!((path.rate(0.0) - path.start[1]).abs() < 1e-15);
         assert!((path.rate(path.h) - path.end[1]).abs() < 1e-14);
     }
@@ -1433,14 +1686,27 @@ mod tests {
                 let mut s = equilibrium(&p, P_RATED, 0.0);
                 let mut work = IntegratorMemory::new(rtol);
                 let mut trace = Vec::new();
-                let (stats, most) = simulate(&p, &mut s, &mut work, x_s, (P_RATED, f_ext), (0.0, t_end, 1e-4), |_, s| trace.push(*s));
+                let (stats, most) = simulate(
+                    &p,
+                    &mut s,
+                    &mut work,
+                    x_s,
+                    (P_RATED, f_ext),
+                    (0.0, t_end, 1e-4),
+                    |_, s| trace.push(*s),
+                );
                 (trace, stats, most)
             };
             let (reference, _, _) = run(1e-12);
             let (trace, stats, most) = run(1e-8);
             let mut worst: f64 = 0.0;
             for (s, r) in trace.iter().zip(&reference) {
-                let e = [(s.p_a - r.p_a) / 1e6, (s.p_b - r.p_b) / 1e6, (s.x - r.x) / 1e-2, (s.v - r.v) / 1e-1];
+                let e = [
+                    (s.p_a - r.p_a) / 1e6,
+                    (s.p_b - r.p_b) / 1e6,
+                    (s.x - r.x) / 1e-2,
+                    (s.v - r.v) / 1e-1,
+                ];
                 worst = e.iter().fold(worst, |w, e| w.max(e.abs()));
             }
             println!(
@@ -1467,7 +1733,10 @@ mod tests {
                 entries += 1;
                 landings += stats.landings;
                 most = most.max(stats.accepted + stats.rejected);
-                println!("entry in call {n}: {} steps ({} rejected, {} landings)", stats.accepted, stats.rejected, stats.landings);
+                println!(
+                    "entry in call {n}: {} steps ({} rejected, {} landings)",
+                    stats.accepted, stats.rejected, stats.landings
+                );
             }
         }
         assert!(entries >= 2 && landings >= entries, "{entries} entries, {landings} landings");
@@ -1480,10 +1749,26 @@ mod tests {
         let interval = 1e-4;
         let measure = |name: &str, mut s: CylinderState, x_s: f64, warmup: f64, span: f64| {
             let mut work = IntegratorMemory::default();
-            simulate(&p, &mut s, &mut work, &|_| x_s, (P_RATED, 0.0), (0.0, warmup, interval), |_, _| {});
+            simulate(
+                &p,
+                &mut s,
+                &mut work,
+                &|_| x_s,
+                (P_RATED, 0.0),
+                (0.0, warmup, interval),
+                |_, _| {},
+            );
             let calls = (span / interval).round();
             let start = std::time::Instant::now();
-            let (stats, most) = simulate(&p, &mut s, &mut work, &|_| x_s, (P_RATED, 0.0), (0.0, span, interval), |_, _| {});
+            let (stats, most) = simulate(
+                &p,
+                &mut s,
+                &mut work,
+                &|_| x_s,
+                (P_RATED, 0.0),
+                (0.0, span, interval),
+                |_, _| {},
+            );
             let per_call = start.elapsed().as_secs_f64() / calls;
             println!(
                 "{name:44} per 0.1 ms call: {:.2} steps ({:.2} rejected, max {most}), {:.1} f-evals, {:.2} us",

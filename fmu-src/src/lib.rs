@@ -7,11 +7,11 @@
 //! * [`model`]: a model instance as the FMI layer sees it (values by reference, step, state bytes).
 //! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code).
 
+pub mod fmi2;
+pub mod fmi3;
+pub mod fmi_common;
 pub mod hydraulics;
 pub mod model;
 pub mod physics;
 pub mod units;
 pub mod variables;
-pub mod fmi2;
-pub mod fmi3;
-pub mod fmi_common;

@@ -2,7 +2,7 @@
 //! step, reset, and a self-checking byte form of the whole state.
 
 use crate::physics::{Physics, StepEvents};
-use crate::variables::{start_values, Causality, VARIABLES, N_VARIABLES};
+use crate::variables::{start_values, Causality, N_VARIABLES, VARIABLES};
 
 #[derive(Clone)]
 pub struct Model {
@@ -190,7 +190,11 @@ pub struct Reader<'a> {
 
 impl Reader<'_> {
     fn take(&mut self, n: usize) -> Result<&[u8], String> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or("state is truncated")?;
+        let end = self
+            .at
+            .checked_add(n)
+            .filter(|&e| e <= self.bytes.len())
+            .ok_or("state is truncated")?;
         let s = &self.bytes[self.at..end];
         self.at = end;
         Ok(s)

@@ -67,9 +67,14 @@ mod tests {
     fn every_variable_unit_and_display_unit_is_defined() {
         for v in VARIABLES.iter() {
             if let Some(name) = v.unit {
-                let u = super::unit(name).unwrap_or_else(|| panic!("{}: unit {name} undefined", v.name));
+                let u = super::unit(name)
+                    .unwrap_or_else(|| panic!("{}: unit {name} undefined", v.name));
                 if let Some(du) = v.display_unit {
-                    assert!(u.display.iter().any(|d| d.name == du), "{}: display unit {du}", v.name);
+                    assert!(
+                        u.display.iter().any(|d| d.name == du),
+                        "{}: display unit {du}",
+                        v.name
+                    );
                 }
             } else {
                 assert!(v.display_unit.is_none());

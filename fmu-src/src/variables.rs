@@ -81,7 +81,10 @@ impl Variable {
                 return Err(format!("{} = {value} rejected: a Boolean is 0 or 1", self.name));
             }
             VarType::Enumeration(_) if value.fract() != 0.0 => {
-                return Err(format!("{} = {value} rejected: an enumeration value is an integer", self.name));
+                return Err(format!(
+                    "{} = {value} rejected: an enumeration value is an integer",
+                    self.name
+                ));
             }
             _ => {}
         }
@@ -92,7 +95,11 @@ impl Variable {
         };
         let above = matches!(self.max, Some(max) if value > max);
         if below || above {
-            return Err(format!("{} = {value} rejected: allowed range is {}", self.name, self.range_text()));
+            return Err(format!(
+                "{} = {value} rejected: allowed range is {}",
+                self.name,
+                self.range_text()
+            ));
         }
         Ok(())
     }
@@ -167,16 +174,32 @@ const fn real(
     }
 }
 
-const fn input(name: &'static str, unit: &'static str, display: Option<&'static str>, start: f64, description: &'static str) -> Variable {
+const fn input(
+    name: &'static str,
+    unit: &'static str,
+    display: Option<&'static str>,
+    start: f64,
+    description: &'static str,
+) -> Variable {
     real(name, Input, Continuous, Some(unit), display, start, description)
 }
 
-const fn output(name: &'static str, unit: &'static str, display: Option<&'static str>, description: &'static str) -> Variable {
+const fn output(
+    name: &'static str,
+    unit: &'static str,
+    display: Option<&'static str>,
+    description: &'static str,
+) -> Variable {
     real(name, Output, Continuous, Some(unit), display, 0.0, description)
 }
 
 /// A fixed parameter (changeable before initialisation only).
-const fn param(name: &'static str, unit: Option<&'static str>, start: f64, description: &'static str) -> Variable {
+const fn param(
+    name: &'static str,
+    unit: Option<&'static str>,
+    start: f64,
+    description: &'static str,
+) -> Variable {
     real(name, Parameter, Fixed, unit, None, start, description)
 }
 

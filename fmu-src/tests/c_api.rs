@@ -48,7 +48,9 @@ fn fmi2_version_and_platform() {
 
 #[test]
 fn fmi2_instantiate_checks_guid_type_and_name() {
-    let log = Fmu2::try_new("bad_guid", fmi2CoSimulation, "{00000000-0000-0000-0000-000000000000}").err().unwrap();
+    let log = Fmu2::try_new("bad_guid", fmi2CoSimulation, "{00000000-0000-0000-0000-000000000000}")
+        .err()
+        .unwrap();
     assert!(log.has(&["fmi2Instantiate", "fmuGUID", "does not match"]), "{}", log.dump());
     assert_eq!(log.lines()[0].status, Status::Error as c_int);
     assert_eq!(log.lines()[0].instance, "bad_guid");
@@ -63,12 +65,21 @@ fn fmi2_instantiate_checks_guid_type_and_name() {
     let name = CString::new("quiet").unwrap();
     let t = token();
     unsafe {
-        let c = fmi2Instantiate(name.as_ptr(), fmi2CoSimulation, t.as_ptr(), null(), null(), fmi2False, fmi2True);
+        let c = fmi2Instantiate(
+            name.as_ptr(),
+            fmi2CoSimulation,
+            t.as_ptr(),
+            null(),
+            null(),
+            fmi2False,
+            fmi2True,
+        );
         assert!(!c.is_null());
         assert_eq!(fmi2DoStep(c, 0.0, 1e-3, fmi2False), ERROR); // error without a logger: no crash
         fmi2FreeInstance(c);
         // NULL GUID is refused.
-        assert!(fmi2Instantiate(name.as_ptr(), fmi2CoSimulation, null(), null(), null(), 0, 0).is_null());
+        assert!(fmi2Instantiate(name.as_ptr(), fmi2CoSimulation, null(), null(), null(), 0, 0)
+            .is_null());
     }
 }
 
@@ -267,7 +278,11 @@ fn fmi2_percent_in_user_text_is_escaped() {
     let log = Fmu2::try_new("pump%s%n", fmi2CoSimulation, "{wrong%d}").err().unwrap();
     let lines = log.lines();
     assert_eq!(lines[0].instance, "pump%s%n", "instanceName is not a format: passed as is");
-    assert!(lines[0].message.contains("pump%%s%%n") && lines[0].message.contains("{wrong%%d}"), "{}", log.dump());
+    assert!(
+        lines[0].message.contains("pump%%s%%n") && lines[0].message.contains("{wrong%%d}"),
+        "{}",
+        log.dump()
+    );
 
     let f = Fmu2::new("100%");
     let cat = CString::new("log%s").unwrap();
@@ -291,7 +306,14 @@ fn fmi2_debug_logging_categories() {
     unsafe {
         assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, 1, &all.as_ptr()), OK);
         assert_eq!(f.step(0.0, 1e-4), OK);
-        assert!(f.log.lines().iter().any(|l| l.category == "logAll" && l.message.contains("fmi2DoStep")), "{}", f.log.dump());
+        assert!(
+            f.log
+                .lines()
+                .iter()
+                .any(|l| l.category == "logAll" && l.message.contains("fmi2DoStep")),
+            "{}",
+            f.log.dump()
+        );
         assert_eq!(fmi2SetDebugLogging(f.c, fmi2False, 0, null()), OK);
         f.log.clear();
         assert_eq!(f.step(1e-4, 1e-4), OK);
@@ -301,7 +323,8 @@ fn fmi2_debug_logging_categories() {
         assert_eq!(f.log.lines().len(), 1);
         assert_eq!(f.log.lines()[0].category, "logStatusError");
         // Every declared category is accepted.
-        let names: Vec<CString> = LOG_CATEGORIES.iter().map(|(n, _)| CString::new(*n).unwrap()).collect();
+        let names: Vec<CString> =
+            LOG_CATEGORIES.iter().map(|(n, _)| CString::new(*n).unwrap()).collect();
         let ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
         assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, ptrs.len(), ptrs.as_ptr()), OK);
         assert_eq!(fmi2SetDebugLogging(f.c, fmi2True, 2, null()), ERROR);
@@ -343,10 +366,19 @@ fn fmi2_fmu_state_round_trip() {
         assert_eq!(fmi2SerializedFMUstateSize(f.c, s, &mut size), OK);
         assert!(size > 24);
         let mut bytes = vec![0 as fmi2Byte; size];
-        assert_eq!(fmi2SerializeFMUstate(f.c, s, bytes.as_mut_ptr(), size - 1), ERROR, "buffer too small");
+        assert_eq!(
+            fmi2SerializeFMUstate(f.c, s, bytes.as_mut_ptr(), size - 1),
+            ERROR,
+            "buffer too small"
+        );
         assert_eq!(fmi2SerializeFMUstate(f.c, s, bytes.as_mut_ptr(), size), OK);
         let mut s2: fmi2FMUstate = null_mut();
-        assert_eq!(fmi2DeSerializeFMUstate(f.c, bytes.as_ptr(), size, &mut s2), OK, "{}", f.log.dump());
+        assert_eq!(
+            fmi2DeSerializeFMUstate(f.c, bytes.as_ptr(), size, &mut s2),
+            OK,
+            "{}",
+            f.log.dump()
+        );
         assert_eq!(fmi2SetFMUstate(f.c, s2), OK);
         t = t_saved;
         run(&f, &mut t, 4, -0.003);
@@ -461,7 +493,11 @@ fn fmi2_reset_and_unsupported_functions() {
 
         let mut d = 0.0;
         assert_eq!(fmi2GetDirectionalDerivative(f.c, &3, 1, &1, 1, &1.0, &mut d), ERROR);
-        assert!(f.log.has(&["fmi2GetDirectionalDerivative is not supported by EhsvActuator"]), "{}", f.log.dump());
+        assert!(
+            f.log.has(&["fmi2GetDirectionalDerivative is not supported by EhsvActuator"]),
+            "{}",
+            f.log.dump()
+        );
         assert_eq!(fmi2SetRealInputDerivatives(f.c, &1, 1, &1, &1.0), ERROR);
         assert_eq!(fmi2GetRealOutputDerivatives(f.c, &3, 1, &1, &mut d), ERROR);
         assert!(f.log.has(&["fmi2GetRealOutputDerivatives is not supported"]));
@@ -476,7 +512,11 @@ fn fmi3_instantiation() {
         assert_eq!(CStr::from_ptr(fmi3GetVersion()).to_str().unwrap(), "3.0");
     }
     let log = Fmu3::try_new("bad", "{nope}", false).err().expect("wrong token refused");
-    assert!(log.has(&["fmi3InstantiateCoSimulation", "instantiationToken", "does not match"]), "{}", log.dump());
+    assert!(
+        log.has(&["fmi3InstantiateCoSimulation", "instantiationToken", "does not match"]),
+        "{}",
+        log.dump()
+    );
     let log = Fmu3::try_new("events", &interface_token(), true).err().expect("event mode refused");
     assert!(log.has(&["eventModeUsed"]), "{}", log.dump());
     let log = Fmu3::try_new("", &interface_token(), false).err().expect("empty name refused");
@@ -486,9 +526,21 @@ fn fmi3_instantiation() {
     let name = CString::new("me").unwrap();
     let t = token();
     unsafe {
-        let i = fmi3InstantiateModelExchange(name.as_ptr(), t.as_ptr(), null(), false, false, log.env(), Some(fmi3_logger));
+        let i = fmi3InstantiateModelExchange(
+            name.as_ptr(),
+            t.as_ptr(),
+            null(),
+            false,
+            false,
+            log.env(),
+            Some(fmi3_logger),
+        );
         assert!(i.is_null());
-        assert!(log.has(&["fmi3InstantiateModelExchange is not supported by EhsvActuator"]), "{}", log.dump());
+        assert!(
+            log.has(&["fmi3InstantiateModelExchange is not supported by EhsvActuator"]),
+            "{}",
+            log.dump()
+        );
         let i = fmi3InstantiateScheduledExecution(
             name.as_ptr(),
             t.as_ptr(),
@@ -504,7 +556,16 @@ fn fmi3_instantiation() {
         assert!(i.is_null());
         assert!(log.has(&["fmi3InstantiateScheduledExecution is not supported by EhsvActuator"]));
         // No logger at all: still NULL, no crash.
-        assert!(fmi3InstantiateModelExchange(name.as_ptr(), t.as_ptr(), null(), false, false, null_mut(), None).is_null());
+        assert!(fmi3InstantiateModelExchange(
+            name.as_ptr(),
+            t.as_ptr(),
+            null(),
+            false,
+            false,
+            null_mut(),
+            None
+        )
+        .is_null());
     }
 }
 
@@ -602,7 +663,11 @@ fn fmi3_value_counts_types_and_references() {
         let mut b = false;
         assert_eq!(fmi3GetBoolean(f.i, &(vr::I_REF as u32), 1, &mut b, 1), ERROR);
         let mut i64v = 0i64;
-        assert_eq!(fmi3SetInt64(f.i, &(vr::DRIVER as u32), 1, &1, 1), ERROR, "fixed parameter in StepMode");
+        assert_eq!(
+            fmi3SetInt64(f.i, &(vr::DRIVER as u32), 1, &1, 1),
+            ERROR,
+            "fixed parameter in StepMode"
+        );
         assert!(f.log.has(&["driver", "fixed parameter", "StepMode"]), "{}", f.log.dump());
         assert_eq!(fmi3GetInt64(f.i, &(vr::CONTROL_MODE as u32), 1, &mut i64v, 1), OK);
 
@@ -658,7 +723,12 @@ fn fmi3_fmu_state_round_trip_and_corruption() {
         let reference = f.outputs();
 
         let mut s2: fmi3FMUState = null_mut();
-        assert_eq!(fmi3DeserializeFMUState(f.i, bytes.as_ptr(), size, &mut s2), OK, "{}", f.log.dump());
+        assert_eq!(
+            fmi3DeserializeFMUState(f.i, bytes.as_ptr(), size, &mut s2),
+            OK,
+            "{}",
+            f.log.dump()
+        );
         assert_eq!(fmi3SetFMUState(f.i, s2), OK);
         assert!((f.get(vr::TIME).1 - 3.0 * h).abs() < 1e-15);
         assert_eq!(f.get(vr::I_REF).1, 0.006);
@@ -694,9 +764,18 @@ fn fmi3_unsupported_functions_log_and_fail() {
             ("fmi3SetTime", fmi3SetTime(f.i, 1.0)),
             ("fmi3GetNumberOfContinuousStates", fmi3GetNumberOfContinuousStates(f.i, &mut n)),
             ("fmi3GetNumberOfEventIndicators", fmi3GetNumberOfEventIndicators(f.i, &mut n)),
-            ("fmi3GetNumberOfVariableDependencies", fmi3GetNumberOfVariableDependencies(f.i, 3, &mut n)),
-            ("fmi3GetDirectionalDerivative", fmi3GetDirectionalDerivative(f.i, &3, 1, &1, 1, &1.0, 1, &mut x, 1)),
-            ("fmi3GetAdjointDerivative", fmi3GetAdjointDerivative(f.i, &3, 1, &1, 1, &1.0, 1, &mut x, 1)),
+            (
+                "fmi3GetNumberOfVariableDependencies",
+                fmi3GetNumberOfVariableDependencies(f.i, 3, &mut n),
+            ),
+            (
+                "fmi3GetDirectionalDerivative",
+                fmi3GetDirectionalDerivative(f.i, &3, 1, &1, 1, &1.0, 1, &mut x, 1),
+            ),
+            (
+                "fmi3GetAdjointDerivative",
+                fmi3GetAdjointDerivative(f.i, &3, 1, &1, 1, &1.0, 1, &mut x, 1),
+            ),
             ("fmi3EnterConfigurationMode", fmi3EnterConfigurationMode(f.i)),
             ("fmi3ExitConfigurationMode", fmi3ExitConfigurationMode(f.i)),
             ("fmi3GetIntervalDecimal", fmi3GetIntervalDecimal(f.i, &1, 1, &mut x, &mut 0)),
@@ -706,14 +785,21 @@ fn fmi3_unsupported_functions_log_and_fail() {
                 "fmi3UpdateDiscreteStates",
                 fmi3UpdateDiscreteStates(f.i, &mut b, &mut b, &mut b, &mut b, &mut b, &mut x),
             ),
-            ("fmi3CompletedIntegratorStep", fmi3CompletedIntegratorStep(f.i, false, &mut b, &mut b)),
+            (
+                "fmi3CompletedIntegratorStep",
+                fmi3CompletedIntegratorStep(f.i, false, &mut b, &mut b),
+            ),
             ("fmi3GetContinuousStates", fmi3GetContinuousStates(f.i, &mut x, 1)),
             ("fmi3GetOutputDerivatives", fmi3GetOutputDerivatives(f.i, &3, 1, &1, &mut x, 1)),
             ("fmi3ActivateModelPartition", fmi3ActivateModelPartition(f.i, 0, 0.0)),
         ];
         for (name, status) in cases {
             assert_eq!(status, ERROR, "{name}");
-            assert!(f.log.has(&[&format!("{name} is not supported by EhsvActuator")]), "{name}:\n{}", f.log.dump());
+            assert!(
+                f.log.has(&[&format!("{name} is not supported by EhsvActuator")]),
+                "{name}:\n{}",
+                f.log.dump()
+            );
         }
         // NULL instance: Error without logging.
         assert_eq!(fmi3EnterEventMode(null_mut()), ERROR);

@@ -23,7 +23,12 @@ fn flow_step_settling(v_supply: f64) -> f64 {
 fn rows_8_and_9_flow_loop_with_high_and_low_supply() {
     let high = flow_step_settling(72.0);
     let low = flow_step_settling(10.0);
-    println!("row 8: {:.3} ms at 72 V, row 9: {:.3} ms at 10 V ({:.0} %)", high * 1e3, low * 1e3, low / high * 100.0);
+    println!(
+        "row 8: {:.3} ms at 72 V, row 9: {:.3} ms at 10 V ({:.0} %)",
+        high * 1e3,
+        low * 1e3,
+        low / high * 100.0
+    );
     assert!(high <= 3.6e-3, "{high}");
     assert!((5.4e-3..=6.6e-3).contains(&low), "{low}");
     assert!(low >= 1.6 * high);
@@ -43,7 +48,8 @@ fn row11_steady_flow_moves_the_piston_at_q_over_area_and_volume_balances() {
     assert!(x < STROKE / 2.0 - 1e-3, "still clear of the stop: {x}");
     assert!((v - q_a / AREA_A).abs() <= 0.01 * v.abs(), "v {v} vs Q_A/A_A {}", q_a / AREA_A);
     // Trapezoidal integral of Q_A against displaced plus compressed volume of chamber A.
-    let inflow: f64 = trace.windows(2).map(|w| 0.5 * (w[0].1[0] + w[1].1[0]) * (w[1].0 - w[0].0)).sum();
+    let inflow: f64 =
+        trace.windows(2).map(|w| 0.5 * (w[0].1[0] + w[1].1[0]) * (w[1].0 - w[0].0)).sum();
     let volume = V_DEAD + AREA_A * (x + STROKE / 2.0);
     let stored = AREA_A * (x - start.0) + volume / BETA * (p_a - start.1);
     println!("inflow {inflow:e} m3, displaced + compressed {stored:e} m3");
@@ -59,7 +65,12 @@ fn end_stop_holds_the_rod_and_pressure_stays_below_supply() {
     let x_max = trace.iter().map(|s| s.1[0]).fold(f64::MIN, f64::max);
     let p_max = trace.iter().map(|s| s.1[1]).fold(f64::MIN, f64::max);
     let last = &trace.last().unwrap().1;
-    println!("x max {:.4} mm, p_A max {:.4} bar, final p_A {:.4} bar", x_max * 1e3, p_max * 1e-5, last[1] * 1e-5);
+    println!(
+        "x max {:.4} mm, p_A max {:.4} bar, final p_A {:.4} bar",
+        x_max * 1e3,
+        p_max * 1e-5,
+        last[1] * 1e-5
+    );
     assert!(x_max > STROKE / 2.0 - 1e-6, "reached the stop: {x_max}");
     assert!(x_max <= STROKE / 2.0 + 0.1e-3);
     assert!(p_max <= P_SUPPLY, "{p_max}");
@@ -116,7 +127,12 @@ fn cylinder_does_not_depend_on_the_communication_step() {
         for (k, (t, y)) in trace.iter().enumerate() {
             let fine = &traces[0][k * stride].1;
             for o in 0..4 {
-                assert!((y[o] - fine[o]).abs() <= 1e-6 * scales[o], "t {t} output {o}: {} vs {}", y[o], fine[o]);
+                assert!(
+                    (y[o] - fine[o]).abs() <= 1e-6 * scales[o],
+                    "t {t} output {o}: {} vs {}",
+                    y[o],
+                    fine[o]
+                );
             }
         }
     }

@@ -4,8 +4,8 @@
 mod scenario;
 
 use ehsv_actuator::model::Model;
-use scenario::{first_output, model, run, settling_to_end as settling_time};
 use ehsv_actuator::variables::vr;
+use scenario::{first_output, model, run, settling_to_end as settling_time};
 
 fn current_step(i_step: f64, driver: f64, output: usize, duration: f64, h: f64) -> Vec<(f64, f64)> {
     let mut m = model(&[("driver", driver)]);
@@ -24,7 +24,8 @@ fn row1_opamp_current_settles_in_a_quarter_millisecond() {
 #[test]
 fn row2_driver_rides_the_rail_then_holds_5_volts() {
     let trace = current_step(5e-3, 2.0, vr::U_DRIVER, 5e-3, 1e-6);
-    let at_rail: Vec<f64> = trace.iter().filter(|(_, u)| (u - 72.0).abs() <= 0.05).map(|(t, _)| *t).collect();
+    let at_rail: Vec<f64> =
+        trace.iter().filter(|(_, u)| (u - 72.0).abs() <= 0.05).map(|(t, _)| *t).collect();
     let span = at_rail.last().unwrap() - at_rail.first().unwrap();
     println!("row 2 at +72 V for {:.4} ms, final {} V", span * 1e3, trace.last().unwrap().1);
     assert!(span >= 0.15e-3, "{span}");
@@ -78,7 +79,12 @@ fn results_do_not_depend_on_the_communication_step() {
                 assert!((t - tr).abs() < 1e-12);
                 let scales = [5e-3, 5.0, 5e-3 * 25.268e-3];
                 for o in 0..3 {
-                    assert!((y[o] - yr[o]).abs() <= 1e-6 * scales[o], "driver {driver} h {h} t {t} output {o}: {} vs {}", y[o], yr[o]);
+                    assert!(
+                        (y[o] - yr[o]).abs() <= 1e-6 * scales[o],
+                        "driver {driver} h {h} t {t} output {o}: {} vs {}",
+                        y[o],
+                        yr[o]
+                    );
                 }
             }
         }
@@ -121,7 +127,10 @@ fn rail_saturated_start_and_supply_drop_are_handled() {
 
 /// Mean of the signal over a sliding window of `window` samples (one PWM period).
 fn period_average(trace: &[(f64, f64)], window: usize) -> Vec<(f64, f64)> {
-    trace.windows(window).map(|w| (w[window - 1].0, w.iter().map(|s| s.1).sum::<f64>() / window as f64)).collect()
+    trace
+        .windows(window)
+        .map(|w| (w[window - 1].0, w.iter().map(|s| s.1).sum::<f64>() / window as f64))
+        .collect()
 }
 
 fn supply_step(driver: f64, v_supply: f64, duration: f64, h: f64) -> Vec<(f64, f64)> {
@@ -143,7 +152,8 @@ fn row5_hbridge_average_current_settles_in_2_ms() {
     let trace = supply_step(4.0, 12.0, 20e-3, 1e-6);
     let ts = settling_time(&period_average(&trace, 50), 0.02);
     let tail = &trace[trace.len() - 50..];
-    let ripple = tail.iter().map(|s| s.1).fold(f64::MIN, f64::max) - tail.iter().map(|s| s.1).fold(f64::MAX, f64::min);
+    let ripple = tail.iter().map(|s| s.1).fold(f64::MIN, f64::max)
+        - tail.iter().map(|s| s.1).fold(f64::MAX, f64::min);
     println!("row 5 settling {:.4} ms, ripple {:.4} mA p-p", ts * 1e3, ripple * 1e3);
     assert!((1.7e-3..=2.3e-3).contains(&ts), "{ts}");
     // The ripple is real: about V/L * T/2 for a 50 % duty, far above rounding.
@@ -166,11 +176,14 @@ fn travel_limits_hold_flapper_and_spool_and_release_them() {
     // 10 mA drives the spool to K1*i/Kw = 0.38 mm and the flapper to ~55 um in the transient.
     let limits = [("driver", 0.0), ("valve.x_flapper_max", 30e-6), ("valve.x_spool_max", 0.2e-3)];
     let outputs = [vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE];
-    let traces: Vec<_> = [1e-6, 1e-4].iter().map(|&h| {
-        let mut m = model(&limits);
-        m.set(vr::I_REF, 10e-3).unwrap();
-        run(&mut m, 20e-3, h, &outputs)
-    }).collect();
+    let traces: Vec<_> = [1e-6, 1e-4]
+        .iter()
+        .map(|&h| {
+            let mut m = model(&limits);
+            m.set(vr::I_REF, 10e-3).unwrap();
+            run(&mut m, 20e-3, h, &outputs)
+        })
+        .collect();
     let (fine, coarse) = (&traces[0], &traces[1]);
     let max_flapper = fine.iter().map(|s| s.1[0]).fold(f64::MIN, f64::max);
     assert!(max_flapper <= 30e-6 * (1.0 + 1e-12) && max_flapper > 29.9e-6, "{max_flapper}");
@@ -183,7 +196,11 @@ fn travel_limits_hold_flapper_and_spool_and_release_them() {
     for (k, (t, y)) in coarse.iter().enumerate() {
         for o in 0..3 {
             let y_fine = fine[k * 100].1[o];
-            assert!((y[o] - y_fine).abs() <= 1e-6 * last[o].abs(), "t {t} output {o}: {} vs {y_fine}", y[o]);
+            assert!(
+                (y[o] - y_fine).abs() <= 1e-6 * last[o].abs(),
+                "t {t} output {o}: {} vs {y_fine}",
+                y[o]
+            );
         }
     }
     // Back to zero current: both leave their stops and return to centre.

@@ -35,7 +35,11 @@ const H: f64 = 1e-4;
 
 /// i_ref as a +-10 mA square wave (period 50 steps): the op-amp driver hits its rails.
 fn i_ref_at(k: usize) -> f64 {
-    if (k / 25).is_multiple_of(2) { 0.01 } else { -0.01 }
+    if (k / 25).is_multiple_of(2) {
+        0.01
+    } else {
+        -0.01
+    }
 }
 
 /// Steps `n` times from step index `k0`, returning every variable (as bits) after each step.
@@ -114,7 +118,11 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
         assert_eq!(f.restore(bad), ERROR, "{what} was accepted");
         let lines = f.log().lines();
         assert_eq!(lines.len(), before + 1, "{what}: one log line");
-        assert!(lines[before].message.contains("cannot deserialize the FMU state"), "{what}: {:?}", lines[before]);
+        assert!(
+            lines[before].message.contains("cannot deserialize the FMU state"),
+            "{what}: {:?}",
+            lines[before]
+        );
     };
     for i in 0..bytes.len() {
         for flip in [0xff, 0x01, 0x80] {
@@ -143,13 +151,24 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
         refused(&random, format!("{len} random bytes"));
         refused(&[magic, &random].concat(), format!("magic + {len} random bytes"));
     }
-    refused(&frame(magic.try_into().unwrap(), &body[..body.len() - 1]), "a frame around a short body".into());
+    refused(
+        &frame(magic.try_into().unwrap(), &body[..body.len() - 1]),
+        "a frame around a short body".into(),
+    );
     // Well-formed frames holding values the FMU would never accept from a setter.
     let value_at = |r: usize| 4 + 1 + 8 + 8 * r; // n_variables u32 | initialized u8 | time f64 | values
-    for (r, v) in [(vr::I_REF, f64::NAN), (vr::V_SUPPLY, f64::INFINITY), (vr::COIL_L, -1.0), (vr::COIL_R, f64::NAN)] {
+    for (r, v) in [
+        (vr::I_REF, f64::NAN),
+        (vr::V_SUPPLY, f64::INFINITY),
+        (vr::COIL_L, -1.0),
+        (vr::COIL_R, f64::NAN),
+    ] {
         let mut b = body.to_vec();
         b[value_at(r)..value_at(r) + 8].copy_from_slice(&v.to_le_bytes());
-        refused(&frame(magic.try_into().unwrap(), &b), format!("{} = {v} in a valid frame", VARIABLES[r].name));
+        refused(
+            &frame(magic.try_into().unwrap(), &b),
+            format!("{} = {v} in a valid frame", VARIABLES[r].name),
+        );
         assert!(f.log().has(&[VARIABLES[r].name]), "the refusal names {}", VARIABLES[r].name);
     }
     let mut b = body.to_vec();
@@ -232,7 +251,11 @@ fn log_categories_are_honoured<F: Api>() {
         f
     };
     let events = run(&["logEvents"]);
-    assert!(events.logged("logEvents", &["reached a supply rail 1 time"]), "{}", events.log().dump());
+    assert!(
+        events.logged("logEvents", &["reached a supply rail 1 time"]),
+        "{}",
+        events.log().dump()
+    );
     assert!(events.logged("logEvents", &["left it 1 time"]), "{}", events.log().dump());
     assert!(events.logged("logStatusError", &["currentCommunicationPoint"]));
     assert!(events.log().lines().iter().all(|l| l.category != "logAll"), "{}", events.log().dump());
@@ -252,7 +275,11 @@ fn log_categories_are_honoured<F: Api>() {
     assert_eq!(f.set_logging(true, &["logEvents"]), OK);
     assert_eq!(f.set_logging(false, &["logEvents"]), OK);
     assert_eq!(f.set_logging(true, &["logEvents", "logEverything"]), ERROR);
-    assert_error_logged(&f, "unknown category", &["unknown log category 'logEverything'", "logEvents, logStatusWarning"]);
+    assert_error_logged(
+        &f,
+        "unknown category",
+        &["unknown log category 'logEverything'", "logEvents, logStatusWarning"],
+    );
     f.log().clear();
     assert_eq!(f.set(vr::I_REF, 0.005), OK);
     assert_eq!(f.step(0.0, 1e-3), OK);
@@ -268,7 +295,11 @@ fn fmi2_status_family_and_warning_category() {
         assert!(f.log.lines().is_empty(), "Discard is logged only under logStatusWarning");
         assert_eq!(f.set_logging(true, &["logStatusWarning"]), OK);
         assert_eq!(fmi2GetStatus(f.c, fmi2DoStepStatus, &mut st), Status::Discard);
-        assert!(f.logged("logStatusWarning", &["fmi2GetStatus", "synchronous"]), "{}", f.log.dump());
+        assert!(
+            f.logged("logStatusWarning", &["fmi2GetStatus", "synchronous"]),
+            "{}",
+            f.log.dump()
+        );
         assert_eq!(f.log.lines()[0].status, Status::Discard as i32);
         for t in [1e-4, 3e-4] {
             let mut last = -1.0;
@@ -280,7 +311,11 @@ fn fmi2_status_family_and_warning_category() {
         assert_error_logged(&f, "NULL value", &["fmi2GetRealStatus", "value is NULL"]);
         assert_eq!(fmi2Terminate(f.c), OK);
         let (mut last, mut term) = (-1.0, fmi2True);
-        assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut last), OK, "after Terminate too");
+        assert_eq!(
+            fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut last),
+            OK,
+            "after Terminate too"
+        );
         assert_eq!(last, 3e-4);
         assert_eq!(fmi2GetBooleanStatus(f.c, fmi2Terminated, &mut term), OK);
         assert_eq!(term, fmi2False);
@@ -299,17 +334,33 @@ fn bad_input_in_step_mode_is_an_error_naming_the_cause<F: Api>() {
         ("+Inf input", |f| f.set(vr::V_SUPPLY, f64::INFINITY), &["V_supply", "inf", "finite"]),
         ("-Inf input", |f| f.set(vr::I_REF, f64::NEG_INFINITY), &["i_ref", "-inf"]),
         ("input out of range", |f| f.set(vr::V_SUPPLY, -5.0), &["V_supply", "-5", "range"]),
-        ("tunable-free: fixed parameter in step mode", |f| f.set(vr::COIL_L, 3.0), &["coil.L", "fixed parameter"]),
+        (
+            "tunable-free: fixed parameter in step mode",
+            |f| f.set(vr::COIL_L, 3.0),
+            &["coil.L", "fixed parameter"],
+        ),
         ("zero step", |f| f.step(H, 0.0), &["step size 0 "]),
         ("negative step", |f| f.step(H, -1e-4), &["step size -0.0001"]),
         ("NaN step", |f| f.step(H, f64::NAN), &["step size NaN"]),
         ("infinite step", |f| f.step(H, f64::INFINITY), &["step size inf"]),
-        ("communication point behind", |f| f.step(0.0, H), &["currentCommunicationPoint 0 ", "0.0001"]),
+        (
+            "communication point behind",
+            |f| f.step(0.0, H),
+            &["currentCommunicationPoint 0 ", "0.0001"],
+        ),
         ("communication point ahead", |f| f.step(0.25, H), &["currentCommunicationPoint 0.25"]),
         ("NaN communication point", |f| f.step(f64::NAN, H), &["currentCommunicationPoint NaN"]),
         ("step past stopTime", |f| f.step(H, 1.0), &["stopTime 0.5"]),
-        ("unknown value reference (get)", |f| f.get(100_000).0, &["unknown value reference 100000"]),
-        ("unknown value reference (set)", |f| f.set(4_000_000_000usize, 1.0), &["unknown value reference 4000000000"]),
+        (
+            "unknown value reference (get)",
+            |f| f.get(100_000).0,
+            &["unknown value reference 100000"],
+        ),
+        (
+            "unknown value reference (set)",
+            |f| f.set(4_000_000_000usize, 1.0),
+            &["unknown value reference 4000000000"],
+        ),
         ("output set", |f| f.set(vr::Q_VALVE, 1.0), &["Q_valve", "output"]),
         ("enumeration out of range", |f| f.set_enum(vr::CONTROL_MODE, 42), &["control_mode"]),
         ("unknown log category", |f| f.set_logging(true, &["logDebug"]), &["logDebug"]),
@@ -329,7 +380,14 @@ fn bad_input_in_step_mode_is_an_error_naming_the_cause<F: Api>() {
 }
 
 fn bad_parameters_are_refused_before_initialisation<F: Api>() {
-    let params = [vr::COIL_L, vr::COIL_R, vr::VALVE_ZETA, vr::VALVE_F_N, vr::DRIVER_KP, vr::DRIVER_SLEW_RATE];
+    let params = [
+        vr::COIL_L,
+        vr::COIL_R,
+        vr::VALVE_ZETA,
+        vr::VALVE_F_N,
+        vr::DRIVER_KP,
+        vr::DRIVER_SLEW_RATE,
+    ];
     for r in params {
         let var = &VARIABLES[r];
         let mut bad = vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
@@ -358,16 +416,36 @@ fn fmi2_null_pointers_name_the_argument() {
     let (r, mut v, mut i, mut size) = (vr::I_REF as u32, 0.0, 0, 0usize);
     unsafe {
         let cases: Vec<(&str, Status, &[&str])> = vec![
-            ("GetReal vr", fmi2GetReal(f.c, null(), 1, &mut v), &["fmi2GetReal", "valueReferences is NULL"]),
+            (
+                "GetReal vr",
+                fmi2GetReal(f.c, null(), 1, &mut v),
+                &["fmi2GetReal", "valueReferences is NULL"],
+            ),
             ("GetReal values", fmi2GetReal(f.c, &r, 1, null_mut()), &["values is NULL"]),
             ("SetReal values", fmi2SetReal(f.c, &r, 1, null()), &["fmi2SetReal", "values is NULL"]),
             ("GetInteger values", fmi2GetInteger(f.c, &r, 1, null_mut()), &["fmi2GetInteger"]),
-            ("SetBoolean vr", fmi2SetBoolean(f.c, null(), 2, &i), &["fmi2SetBoolean", "valueReferences is NULL"]),
+            (
+                "SetBoolean vr",
+                fmi2SetBoolean(f.c, null(), 2, &i),
+                &["fmi2SetBoolean", "valueReferences is NULL"],
+            ),
             ("GetFMUstate", fmi2GetFMUstate(f.c, null_mut()), &["FMUState is NULL"]),
             ("SetFMUstate", fmi2SetFMUstate(f.c, null_mut()), &["FMU state is NULL"]),
-            ("SerializedFMUstateSize size", fmi2SerializedFMUstateSize(f.c, null_mut(), &mut size), &["FMU state"]),
-            ("DeSerialize bytes", fmi2DeSerializeFMUstate(f.c, null(), 8, &mut null_mut::<std::ffi::c_void>()), &["serializedState is NULL"]),
-            ("SetDebugLogging", fmi2SetDebugLogging(f.c, fmi2True, 1, null()), &["categories is NULL"]),
+            (
+                "SerializedFMUstateSize size",
+                fmi2SerializedFMUstateSize(f.c, null_mut(), &mut size),
+                &["FMU state"],
+            ),
+            (
+                "DeSerialize bytes",
+                fmi2DeSerializeFMUstate(f.c, null(), 8, &mut null_mut::<std::ffi::c_void>()),
+                &["serializedState is NULL"],
+            ),
+            (
+                "SetDebugLogging",
+                fmi2SetDebugLogging(f.c, fmi2True, 1, null()),
+                &["categories is NULL"],
+            ),
             ("GetIntegerStatus", fmi2GetIntegerStatus(f.c, 0, null_mut()), &["value is NULL"]),
         ];
         for (what, status, needles) in cases {
@@ -395,17 +473,57 @@ fn fmi3_null_pointers_and_counts_name_the_argument() {
     let (mut v, mut b, mut t) = ([0.0; 2], false, 0.0);
     unsafe {
         let cases: Vec<(&str, Status, &[&str])> = vec![
-            ("nValues short", fmi3GetFloat64(f.i, refs.as_ptr(), 2, v.as_mut_ptr(), 1), &["fmi3GetFloat64", "nValues = 1"]),
-            ("nValues long", fmi3SetFloat64(f.i, refs.as_ptr(), 1, v.as_ptr(), 2), &["fmi3SetFloat64", "nValues = 2"]),
-            ("nValues bool", fmi3GetBoolean(f.i, refs.as_ptr(), 1, &mut b, 0), &["fmi3GetBoolean", "nValues = 0"]),
-            ("values NULL", fmi3GetFloat64(f.i, refs.as_ptr(), 2, null_mut(), 2), &["values is NULL"]),
-            ("vr NULL", fmi3SetInt64(f.i, null(), 1, &1, 1), &["fmi3SetInt64", "valueReferences is NULL"]),
-            ("eventHandlingNeeded", fmi3DoStep(f.i, 0.0, H, false, null_mut(), &mut b, &mut b, &mut t), &["eventHandlingNeeded"]),
-            ("terminateSimulation", fmi3DoStep(f.i, 0.0, H, false, &mut b, null_mut(), &mut b, &mut t), &["terminateSimulation"]),
-            ("earlyReturn", fmi3DoStep(f.i, 0.0, H, false, &mut b, &mut b, null_mut(), &mut t), &["earlyReturn"]),
-            ("lastSuccessfulTime", fmi3DoStep(f.i, 0.0, H, false, &mut b, &mut b, &mut b, null_mut()), &["lastSuccessfulTime"]),
+            (
+                "nValues short",
+                fmi3GetFloat64(f.i, refs.as_ptr(), 2, v.as_mut_ptr(), 1),
+                &["fmi3GetFloat64", "nValues = 1"],
+            ),
+            (
+                "nValues long",
+                fmi3SetFloat64(f.i, refs.as_ptr(), 1, v.as_ptr(), 2),
+                &["fmi3SetFloat64", "nValues = 2"],
+            ),
+            (
+                "nValues bool",
+                fmi3GetBoolean(f.i, refs.as_ptr(), 1, &mut b, 0),
+                &["fmi3GetBoolean", "nValues = 0"],
+            ),
+            (
+                "values NULL",
+                fmi3GetFloat64(f.i, refs.as_ptr(), 2, null_mut(), 2),
+                &["values is NULL"],
+            ),
+            (
+                "vr NULL",
+                fmi3SetInt64(f.i, null(), 1, &1, 1),
+                &["fmi3SetInt64", "valueReferences is NULL"],
+            ),
+            (
+                "eventHandlingNeeded",
+                fmi3DoStep(f.i, 0.0, H, false, null_mut(), &mut b, &mut b, &mut t),
+                &["eventHandlingNeeded"],
+            ),
+            (
+                "terminateSimulation",
+                fmi3DoStep(f.i, 0.0, H, false, &mut b, null_mut(), &mut b, &mut t),
+                &["terminateSimulation"],
+            ),
+            (
+                "earlyReturn",
+                fmi3DoStep(f.i, 0.0, H, false, &mut b, &mut b, null_mut(), &mut t),
+                &["earlyReturn"],
+            ),
+            (
+                "lastSuccessfulTime",
+                fmi3DoStep(f.i, 0.0, H, false, &mut b, &mut b, &mut b, null_mut()),
+                &["lastSuccessfulTime"],
+            ),
             ("GetFMUState", fmi3GetFMUState(f.i, null_mut()), &["FMUState is NULL"]),
-            ("DeserializeFMUState", fmi3DeserializeFMUState(f.i, null(), 3, &mut null_mut::<std::ffi::c_void>()), &["serializedState is NULL"]),
+            (
+                "DeserializeFMUState",
+                fmi3DeserializeFMUState(f.i, null(), 3, &mut null_mut::<std::ffi::c_void>()),
+                &["serializedState is NULL"],
+            ),
             ("SetDebugLogging", fmi3SetDebugLogging(f.i, true, 2, null()), &["categories is NULL"]),
         ];
         for (what, status, needles) in cases {
@@ -424,7 +542,11 @@ fn huge_steps_return_in_bounded_time<F: Api>() {
         for h in [1e6, 1e3, 1.0] {
             let f = F::create(name);
             if f.set_enum(vr::DRIVER, value) != OK {
-                println!("{} driver {name}: refused by this build ({})", F::VERSION, f.log().dump().trim());
+                println!(
+                    "{} driver {name}: refused by this build ({})",
+                    F::VERSION,
+                    f.log().dump().trim()
+                );
                 break;
             }
             assert_eq!(f.set(vr::I_REF, 0.005), OK);
@@ -433,7 +555,10 @@ fn huge_steps_return_in_bounded_time<F: Api>() {
             let start = Instant::now();
             let status = f.step(0.0, h);
             let took = start.elapsed();
-            println!("{} driver {name}: one doStep of {h:e} s returned {status:?} in {took:?}", F::VERSION);
+            println!(
+                "{} driver {name}: one doStep of {h:e} s returned {status:?} in {took:?}",
+                F::VERSION
+            );
             assert!(took < Duration::from_secs(2), "{name}: a {h} s step took {took:?}");
             // Whatever the answer, the instance goes on.
             let t = f.get(vr::TIME).1;
@@ -448,7 +573,14 @@ fn huge_steps_return_in_bounded_time<F: Api>() {
 /// and the initialisation must return promptly. Runs each case on its own thread and
 /// gives up waiting after 5 s (found by tests/src/bin/fuzz.rs).
 fn extreme_finite_parameters_return_in_bounded_time<F: Api>() {
-    for r in [vr::COIL_R_SENSE, vr::COIL_R, vr::COIL_L, vr::VALVE_A_S, vr::DRIVER_KP, vr::DRIVER_SLEW_RATE] {
+    for r in [
+        vr::COIL_R_SENSE,
+        vr::COIL_R,
+        vr::COIL_L,
+        vr::VALVE_A_S,
+        vr::DRIVER_KP,
+        vr::DRIVER_SLEW_RATE,
+    ] {
         for v in [f64::MAX, 1e300, 1e-300, -f64::MAX] {
             let (tx, rx) = std::sync::mpsc::channel();
             std::thread::spawn(move || {
@@ -458,8 +590,14 @@ fn extreme_finite_parameters_return_in_bounded_time<F: Api>() {
                 let _ = tx.send((set, init));
             });
             match rx.recv_timeout(Duration::from_secs(5)) {
-                Ok((set, init)) => println!("{} {} = {v:e}: set {set:?}, init {init:?}", F::VERSION, VARIABLES[r].name),
-                Err(_) => panic!("{} = {v:e}: no answer within 5 s (the call hangs)", VARIABLES[r].name),
+                Ok((set, init)) => println!(
+                    "{} {} = {v:e}: set {set:?}, init {init:?}",
+                    F::VERSION,
+                    VARIABLES[r].name
+                ),
+                Err(_) => {
+                    panic!("{} = {v:e}: no answer within 5 s (the call hangs)", VARIABLES[r].name)
+                }
             }
         }
     }

@@ -170,9 +170,7 @@ fn scalar_variable(value_reference: u32, v: &'static Variable) -> ScalarVariable
             min: v.min,
             max: v.max,
         },
-        VarType::Boolean => TypedValue::Boolean {
-            start: boolean_start(v),
-        },
+        VarType::Boolean => TypedValue::Boolean { start: boolean_start(v) },
         VarType::Enumeration(declared_type) => TypedValue::Enumeration {
             declared_type,
             start: integer_start(v),
@@ -193,18 +191,8 @@ fn scalar_variable(value_reference: u32, v: &'static Variable) -> ScalarVariable
 
 /// ModelVariables lists the table in order, so the 1-based index is position + 1.
 fn unknowns(rows: impl Iterator<Item = (u32, &'static Variable)>) -> Unknowns {
-    let position = |vr: u32| {
-        table()
-            .position(|(r, _)| r == vr)
-            .expect("row of the table")
-    };
-    Unknowns {
-        unknowns: rows
-            .map(|(vr, _)| Unknown {
-                index: position(vr) + 1,
-            })
-            .collect(),
-    }
+    let position = |vr: u32| table().position(|(r, _)| r == vr).expect("row of the table");
+    Unknowns { unknowns: rows.map(|(vr, _)| Unknown { index: position(vr) + 1 }).collect() }
 }
 
 pub(crate) fn model_description() -> ModelDescription {
@@ -236,9 +224,7 @@ pub(crate) fn model_description() -> ModelDescription {
                 .map(|e| SimpleType {
                     name: e.name,
                     description: e.description,
-                    enumeration: EnumerationType {
-                        items: items(e.items),
-                    },
+                    enumeration: EnumerationType { items: items(e.items) },
                 })
                 .collect(),
         },

@@ -175,10 +175,7 @@ fn model_variable(value_reference: u32, v: &'static Variable) -> ModelVariable {
             min: v.min,
             max: v.max,
         },
-        VarType::Boolean => ModelVariable::Boolean {
-            common,
-            start: boolean_start(v),
-        },
+        VarType::Boolean => ModelVariable::Boolean { common, start: boolean_start(v) },
         VarType::Enumeration(declared_type) => ModelVariable::Enumeration {
             common,
             declared_type,
@@ -190,8 +187,7 @@ fn model_variable(value_reference: u32, v: &'static Variable) -> ModelVariable {
 }
 
 fn unknowns(rows: impl Iterator<Item = (u32, &'static Variable)>) -> Vec<Unknown> {
-    rows.map(|(value_reference, _)| Unknown { value_reference })
-        .collect()
+    rows.map(|(value_reference, _)| Unknown { value_reference }).collect()
 }
 
 pub(crate) fn model_description() -> ModelDescription {

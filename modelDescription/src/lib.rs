@@ -48,9 +48,7 @@ fn to_xml<T: Serialize>(document: &T) -> String {
     let mut xml = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
     let mut serializer = quick_xml::se::Serializer::new(&mut xml);
     serializer.indent(' ', 2);
-    document
-        .serialize(serializer)
-        .expect("modelDescription structs always serialize");
+    document.serialize(serializer).expect("modelDescription structs always serialize");
     xml.push('\n');
     xml
 }
@@ -111,30 +109,15 @@ fn unit_definitions() -> UnitDefinitions {
         let [kg, m, s, a, k, mol, cd, rad] = u.base.map(nonzero);
         UnitElement {
             name: u.name,
-            base_unit: BaseUnit {
-                kg,
-                m,
-                s,
-                a,
-                k,
-                mol,
-                cd,
-                rad,
-            },
+            base_unit: BaseUnit { kg, m, s, a, k, mol, cd, rad },
             display_units: u
                 .display
                 .iter()
-                .map(|d| DisplayUnitElement {
-                    name: d.name,
-                    factor: d.factor,
-                    offset: d.offset,
-                })
+                .map(|d| DisplayUnitElement { name: d.name, factor: d.factor, offset: d.offset })
                 .collect(),
         }
     };
-    UnitDefinitions {
-        units: UNITS.iter().map(element).collect(),
-    }
+    UnitDefinitions { units: UNITS.iter().map(element).collect() }
 }
 
 /// `<Item>` of an enumeration type: same attributes in FMI 2 and FMI 3.
@@ -149,14 +132,7 @@ struct Item {
 }
 
 fn items(items: &'static [(i64, &'static str, &'static str)]) -> Vec<Item> {
-    items
-        .iter()
-        .map(|&(value, name, description)| Item {
-            name,
-            value,
-            description,
-        })
-        .collect()
+    items.iter().map(|&(value, name, description)| Item { name, value, description }).collect()
 }
 
 /// `<LogCategories>`: same element in FMI 2 and FMI 3, rendered from the one list the C
@@ -194,11 +170,8 @@ struct DefaultExperiment {
     step_size: f64,
 }
 
-const DEFAULT_EXPERIMENT: DefaultExperiment = DefaultExperiment {
-    start_time: START_TIME,
-    stop_time: STOP_TIME,
-    step_size: STEP_SIZE,
-};
+const DEFAULT_EXPERIMENT: DefaultExperiment =
+    DefaultExperiment { start_time: START_TIME, stop_time: STOP_TIME, step_size: STEP_SIZE };
 
 fn causality_name(c: Causality) -> &'static str {
     match c {
@@ -241,10 +214,7 @@ fn integer_bound(bound: Option<f64>) -> Option<i64> {
 
 /// Table rows with their value reference (= index).
 fn table() -> impl Iterator<Item = (u32, &'static Variable)> {
-    VARIABLES
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (v.value_reference(i), v))
+    VARIABLES.iter().enumerate().map(|(i, v)| (v.value_reference(i), v))
 }
 
 /// Outputs listed in ModelStructure; all of them are also initial unknowns (initial = calculated).

@@ -15,11 +15,7 @@ pub fn variables_markdown() -> String {
             (Some(u), None) => u.to_string(),
             (None, _) => String::new(),
         };
-        let range = if v.min.is_some() || v.max.is_some() {
-            v.range_text()
-        } else {
-            String::new()
-        };
+        let range = if v.min.is_some() || v.max.is_some() { v.range_text() } else { String::new() };
         md += &format!(
             "| {vr} | `{}` | {} | {} | {} | {} | {} |\n",
             v.name,

@@ -15,9 +15,7 @@ struct Element {
 
 impl Element {
     fn attr(&self, name: &str) -> &str {
-        self.attrs
-            .get(name)
-            .unwrap_or_else(|| panic!("<{}> has no {name}", self.name))
+        self.attrs.get(name).unwrap_or_else(|| panic!("<{}> has no {name}", self.name))
     }
     fn child(&self, name: &str) -> &Element {
         self.children
@@ -36,18 +34,12 @@ fn element(start: &BytesStart) -> Element {
         .map(|a| {
             let a = a.expect("well-formed attribute");
             let key = a.key.as_ref().to_string();
-            let value = a
-                .normalized_value(XmlVersion::Implicit1_0)
-                .expect("valid escapes")
-                .into_owned();
+            let value =
+                a.normalized_value(XmlVersion::Implicit1_0).expect("valid escapes").into_owned();
             (key, value)
         })
         .collect();
-    Element {
-        name: start.name().as_ref().to_string(),
-        attrs,
-        children: vec![],
-    }
+    Element { name: start.name().as_ref().to_string(), attrs, children: vec![] }
 }
 
 /// Parses the whole document; panics on malformed XML.
@@ -71,47 +63,29 @@ fn parse(xml: &str) -> Element {
 }
 
 fn number(text: &str) -> f64 {
-    text.parse()
-        .unwrap_or_else(|_| panic!("{text:?} is not a number"))
+    text.parse().unwrap_or_else(|_| panic!("{text:?} is not a number"))
 }
 
 /// Checks both versions share: root, token, units, variable attributes in table order.
 fn check_common(root: &Element, token_attribute: &str) {
     assert_eq!(root.name, "fmiModelDescription");
     assert_eq!(root.attr("modelName"), "EhsvActuator");
-    assert_eq!(
-        root.attr(token_attribute),
-        ehsv_actuator::variables::interface_token()
-    );
+    assert_eq!(root.attr(token_attribute), ehsv_actuator::variables::interface_token());
     assert_eq!(root.attr("variableNamingConvention"), "structured");
-    assert_eq!(
-        root.child("CoSimulation").attr("modelIdentifier"),
-        "EhsvActuator"
-    );
+    assert_eq!(root.child("CoSimulation").attr("modelIdentifier"), "EhsvActuator");
 
     let units = root.child("UnitDefinitions");
     assert_eq!(units.all("Unit").count(), UNITS.len());
     let volt = units.all("Unit").find(|u| u.attr("name") == "V").unwrap();
     let base = &volt.child("BaseUnit").attrs;
     assert_eq!(
-        (
-            base["kg"].as_str(),
-            base["m"].as_str(),
-            base["s"].as_str(),
-            base["A"].as_str()
-        ),
+        (base["kg"].as_str(), base["m"].as_str(), base["s"].as_str(), base["A"].as_str()),
         ("1", "2", "-3", "-1")
     );
     assert!(!base.contains_key("K"), "zero exponents are omitted");
-    let flow = units
-        .all("Unit")
-        .find(|u| u.attr("name") == "m3/s")
-        .unwrap();
+    let flow = units.all("Unit").find(|u| u.attr("name") == "m3/s").unwrap();
     let lpm = flow.child("DisplayUnit");
-    assert_eq!(
-        (lpm.attr("name"), number(lpm.attr("factor"))),
-        ("L/min", 6e4)
-    );
+    assert_eq!((lpm.attr("name"), number(lpm.attr("factor"))), ("L/min", 6e4));
 
     let experiment = root.child("DefaultExperiment");
     assert_eq!(number(experiment.attr("stopTime")), 0.01);
@@ -131,13 +105,7 @@ fn check_items<'a>(types: impl Iterator<Item = (&'a str, &'a Element)>) {
     let expected: Vec<(String, Vec<(i64, String)>)> = ENUMERATIONS
         .iter()
         .map(|e| {
-            (
-                e.name.to_string(),
-                e.items
-                    .iter()
-                    .map(|(v, n, _)| (*v, n.to_string()))
-                    .collect(),
-            )
+            (e.name.to_string(), e.items.iter().map(|(v, n, _)| (*v, n.to_string())).collect())
         })
         .collect();
     assert_eq!(rendered, expected);
@@ -150,10 +118,7 @@ fn check_variable(element: &Element, index: usize) {
     assert_eq!(element.attr("valueReference"), index.to_string());
     assert_eq!(element.attr("causality"), causality_name(v.causality));
     assert_eq!(element.attr("variability"), variability_name(v.variability));
-    assert_eq!(
-        element.attrs.get("initial").map(String::as_str),
-        initial_name(v)
-    );
+    assert_eq!(element.attrs.get("initial").map(String::as_str), initial_name(v));
 }
 
 /// Attributes of the type element (FMI 2 child, FMI 3 the variable element itself).
@@ -163,10 +128,7 @@ fn check_value(value: &Element, v: &Variable) {
     match v.ty {
         VarType::Real => {
             assert_eq!(value.attrs.get("unit").map(String::as_str), v.unit);
-            assert_eq!(
-                value.attrs.get("displayUnit").map(String::as_str),
-                v.display_unit
-            );
+            assert_eq!(value.attrs.get("displayUnit").map(String::as_str), v.display_unit);
             if let Some(start) = start {
                 assert_eq!(number(start), v.start, "{}: start round-trips", v.name);
             }
@@ -230,16 +192,10 @@ fn fmi2_matches_table() {
     for index in &outputs {
         assert_eq!(variables[index - 1].attr("causality"), "output");
     }
-    let initial: Vec<&str> = structure
-        .child("InitialUnknowns")
-        .all("Unknown")
-        .map(|u| u.attr("index"))
-        .collect();
+    let initial: Vec<&str> =
+        structure.child("InitialUnknowns").all("Unknown").map(|u| u.attr("index")).collect();
     for index in initial {
-        assert_eq!(
-            variables[index.parse::<usize>().unwrap() - 1].attr("initial"),
-            "calculated"
-        );
+        assert_eq!(variables[index.parse::<usize>().unwrap() - 1].attr("initial"), "calculated");
     }
 }
 
@@ -271,20 +227,15 @@ fn fmi3_matches_table() {
     }
 
     let structure = root.child("ModelStructure");
-    let outputs: Vec<usize> = structure
-        .all("Output")
-        .map(|u| u.attr("valueReference").parse().unwrap())
-        .collect();
+    let outputs: Vec<usize> =
+        structure.all("Output").map(|u| u.attr("valueReference").parse().unwrap()).collect();
     assert!(!outputs.is_empty());
     for vr in &outputs {
         assert_eq!(VARIABLES[*vr].causality, Causality::Output);
     }
     assert_eq!(
         outputs.len(),
-        VARIABLES
-            .iter()
-            .filter(|v| v.causality == Causality::Output)
-            .count()
+        VARIABLES.iter().filter(|v| v.causality == Causality::Output).count()
     );
     assert_eq!(structure.all("InitialUnknown").count(), outputs.len());
 }
@@ -301,10 +252,7 @@ fn large_and_small_numbers_print_parseably() {
 fn markdown_has_a_row_per_variable() {
     let md = variables_markdown();
     assert_eq!(md.lines().count(), 2 + VARIABLES.len());
-    assert!(
-        md.contains("| `coil.L` | parameter | H | 3.2 | (0, +inf) |"),
-        "{md}"
-    );
+    assert!(md.contains("| `coil.L` | parameter | H | 3.2 | (0, +inf) |"), "{md}");
     assert!(md.contains("| 2 (opamp_pi) |"));
     assert!(enumerations_markdown().contains("- 2 `opamp_pi`"));
 }
@@ -323,6 +271,10 @@ fn log_categories_are_the_c_api_list_in_schema_order() {
         // Schema order: ... TypeDefinitions, LogCategories, DefaultExperiment ...
         let names: Vec<&str> = root.children.iter().map(|c| c.name.as_str()).collect();
         let at = |n: &str| names.iter().position(|&x| x == n).unwrap();
-        assert!(at("TypeDefinitions") < at("LogCategories") && at("LogCategories") < at("DefaultExperiment"), "{names:?}");
+        assert!(
+            at("TypeDefinitions") < at("LogCategories")
+                && at("LogCategories") < at("DefaultExperiment"),
+            "{names:?}"
+        );
     }
 }

@@ -42,7 +42,12 @@ pub(super) fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, pass
 /// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
 /// guard and the state there. Searched in windows short enough for a Taylor polynomial
 /// of the exact solution.
-pub(super) fn locate_event(sys: &ModeSystem, z0: &Vector, h: f64, passed: u8) -> Option<(f64, usize, Vector)> {
+pub(super) fn locate_event(
+    sys: &ModeSystem,
+    z0: &Vector,
+    h: f64,
+    passed: u8,
+) -> Option<(f64, usize, Vector)> {
     let windows = sys.substeps(h, THETA_FINE);
     let w = h / windows as f64;
     let mut start = *z0;

@@ -68,7 +68,13 @@ pub struct Digital {
 
 impl Digital {
     /// Holding `u` on average (the equilibrium voltage) at `start_time`.
-    pub fn at_equilibrium(p: &HBridgeParams, u: f64, feedforward_u: f64, rail: f64, start_time: f64) -> Self {
+    pub fn at_equilibrium(
+        p: &HBridgeParams,
+        u: f64,
+        feedforward_u: f64,
+        rail: f64,
+        start_time: f64,
+    ) -> Self {
         if !p.enabled {
             return Digital::default();
         }
@@ -95,7 +101,8 @@ impl Digital {
         if !self.active {
             return f64::INFINITY;
         }
-        let edge = if self.next_edge < 2 { self.edges[self.next_edge as usize] } else { f64::INFINITY };
+        let edge =
+            if self.next_edge < 2 { self.edges[self.next_edge as usize] } else { f64::INFINITY };
         edge.min(p.sample_time(self.next_sample)).min(p.period_time(self.next_period))
     }
 
@@ -169,7 +176,15 @@ impl Digital {
     pub fn write_bytes(&self, out: &mut Vec<u8>) {
         out.push(self.active as u8 | (self.high as u8) << 1);
         out.push(self.next_edge);
-        for x in [self.integral, self.pending, self.applied, self.next_sample as f64, self.next_period as f64, self.edges[0], self.edges[1]] {
+        for x in [
+            self.integral,
+            self.pending,
+            self.applied,
+            self.next_sample as f64,
+            self.next_period as f64,
+            self.edges[0],
+            self.edges[1],
+        ] {
             out.extend_from_slice(&x.to_le_bytes());
         }
     }

@@ -73,7 +73,6 @@ pub enum DriverKind {
     HBridge,
 }
 
-
 /// Driver modes. The op-amp driver moves between the last seven.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -110,7 +109,10 @@ impl Mode {
         self as usize
     }
     fn at_rail(self) -> bool {
-        matches!(self, Mode::HighFrozen | Mode::HighIntegrating | Mode::LowFrozen | Mode::LowIntegrating)
+        matches!(
+            self,
+            Mode::HighFrozen | Mode::HighIntegrating | Mode::LowFrozen | Mode::LowIntegrating
+        )
     }
 }
 
@@ -169,7 +171,13 @@ impl Params {
             slew_rate: pick(vr::DRIVER_SLEW_RATE, vr::INDUSTRIAL_SLEW_RATE),
             hbridge: hbridge::HBridgeParams::from_values(v),
             loops: LoopParams::from_values(v, v[vr::VALVE_K3] * v[vr::VALVE_K1] / v[vr::VALVE_KW])?,
-            cylinder: CylinderParams::from_lookup(|name| v[crate::variables::index_of(name).expect("cylinder parameter in the variable table")], v[vr::VALVE_K3])?,
+            cylinder: CylinderParams::from_lookup(
+                |name| {
+                    v[crate::variables::index_of(name)
+                        .expect("cylinder parameter in the variable table")]
+                },
+                v[vr::VALVE_K3],
+            )?,
             inductance: v[vr::COIL_L],
             r_total: v[vr::COIL_R] + v[vr::COIL_R_SENSE],
             k_backemf: v[vr::COIL_K_B],
@@ -231,7 +239,13 @@ impl ModeSystem {
     fn new(p: &Params, mode: Mode) -> ModeSystem {
         let a = dynamics(p, mode);
         let radius = spectral_radius(&a);
-        let mut sys = ModeSystem { a, guards: [Vector::zeros(); MAX_GUARDS], guard_rates: [Vector::zeros(); MAX_GUARDS], n_guards: 0, radius };
+        let mut sys = ModeSystem {
+            a,
+            guards: [Vector::zeros(); MAX_GUARDS],
+            guard_rates: [Vector::zeros(); MAX_GUARDS],
+            n_guards: 0,
+            radius,
+        };
         for g in mode_guards(p, mode, &a) {
             sys.push_guard(g);
         }
@@ -390,7 +404,11 @@ struct PropagatorCache {
 impl PropagatorCache {
     fn new() -> Self {
         let empty = Propagator { substeps: 0, h: 0.0, matrix: Mat::zeros() };
-        PropagatorCache { keys: [(usize::MAX, 0); CACHE_SLOTS], values: [empty; CACHE_SLOTS], next: 0 }
+        PropagatorCache {
+            keys: [(usize::MAX, 0); CACHE_SLOTS],
+            values: [empty; CACHE_SLOTS],
+            next: 0,
+        }
     }
 
     /// `system` names the (mode, stops) pair; keys hold the bits of the span, so equal
@@ -406,7 +424,10 @@ impl PropagatorCache {
                 // exp() estimates norms of powers up to (A h)^10 and squares log2 of them
                 // times: past ~1e30 they overflow and the squaring never ends. Physical
                 // cases stay decades below MAX_SCALED_NORM (a 1e20 s step gives ~3e23).
-                let norm = scaled.column_iter().map(|c| c.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max);
+                let norm = scaled
+                    .column_iter()
+                    .map(|c| c.iter().map(|x| x.abs()).sum::<f64>())
+                    .fold(0.0, f64::max);
                 if norm.is_nan() || norm > MAX_SCALED_NORM {
                     return Err(format!(
                         "a sub-step of {h} s with these parameters is beyond exact propagation (|A h| = {norm:e}); step refused"
@@ -473,7 +494,13 @@ impl Inputs {
             ControlMode::Position => v[vr::X_REF],
             ControlMode::Current => 0.0,
         };
-        Inputs { i_ref: v[vr::I_REF], rail: p.rail(v[vr::V_SUPPLY]), p_supply: v[vr::P_SUPPLY], f_ext: v[vr::F_EXT], reference }
+        Inputs {
+            i_ref: v[vr::I_REF],
+            rail: p.rail(v[vr::V_SUPPLY]),
+            p_supply: v[vr::P_SUPPLY],
+            f_ext: v[vr::F_EXT],
+            reference,
+        }
     }
 }
 
@@ -544,12 +571,21 @@ impl Physics {
         // Torque balance K1 i = Kw x_s + Kf x_f with the flapper centred, unless the spool
         // sits at its stop and the flapper carries the rest.
         let free_spool = p.k1 * z[I] / p.kw;
-        z[XS] = if p.x_spool_max > 0.0 { free_spool.clamp(-p.x_spool_max, p.x_spool_max) } else { free_spool };
+        z[XS] = if p.x_spool_max > 0.0 {
+            free_spool.clamp(-p.x_spool_max, p.x_spool_max)
+        } else {
+            free_spool
+        };
         let flapper = (p.k1 * z[I] - p.kw * z[XS]) / p.kf;
-        z[XF] = if p.x_flapper_max > 0.0 { flapper.clamp(-p.x_flapper_max, p.x_flapper_max) } else { flapper };
+        z[XF] = if p.x_flapper_max > 0.0 {
+            flapper.clamp(-p.x_flapper_max, p.x_flapper_max)
+        } else {
+            flapper
+        };
         if p.driver == DriverKind::HBridge {
             // The average bridge voltage holds the current; the PWM starts at the next period.
-            self.digital = Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_ref, vmax, start_time);
+            self.digital =
+                Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_ref, vmax, start_time);
             z[U] = self.digital.output(vmax);
         }
         self.settle(&mut z);
@@ -562,7 +598,9 @@ impl Physics {
         let p = &self.params;
         // An inelastic impact: at its limit the flapper loses any outward velocity.
         let reach = p.x_flapper_max * (1.0 - 1e-12);
-        if p.x_flapper_max > 0.0 && (z[XF] >= reach && z[VF] > 0.0 || z[XF] <= -reach && z[VF] < 0.0) {
+        if p.x_flapper_max > 0.0
+            && (z[XF] >= reach && z[VF] > 0.0 || z[XF] <= -reach && z[VF] < 0.0)
+        {
             z[XF] = z[XF].clamp(-p.x_flapper_max, p.x_flapper_max);
             z[VF] = 0.0;
         }
@@ -603,7 +641,10 @@ impl Physics {
                 0
             }
         };
-        Stops { flapper: side(z[XF], p.x_flapper_max, flapper_accel), spool: side(z[XS], p.x_spool_max, z[XF]) }
+        Stops {
+            flapper: side(z[XF], p.x_flapper_max, flapper_accel),
+            spool: side(z[XS], p.x_spool_max, z[XF]),
+        }
     }
 
     pub fn write_outputs(&self, values: &mut [f64; N_VARIABLES]) {
@@ -640,7 +681,10 @@ impl Physics {
         match p.driver {
             // The ideal source's voltage is what holds the current (its L di/dt impulse aside).
             DriverKind::IdealCurrent => z[U] = p.r_total * i_ref,
-            DriverKind::Voltage | DriverKind::HBridge | DriverKind::OpampPi | DriverKind::Industrial => {}
+            DriverKind::Voltage
+            | DriverKind::HBridge
+            | DriverKind::OpampPi
+            | DriverKind::Industrial => {}
         }
     }
 
@@ -696,25 +740,54 @@ impl Physics {
 
     /// Advances from `t_start` by `step` seconds with the inputs in `values` held constant.
     /// On error the state is left as it was.
-    pub fn advance(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
-        let saved = (self.z, self.mode, self.stops, self.digital, self.outer, self.cylinder, self.cylinder_memory, self.p_supply);
+    pub fn advance(
+        &mut self,
+        values: &[f64; N_VARIABLES],
+        t_start: f64,
+        step: f64,
+    ) -> Result<StepEvents, String> {
+        let saved = (
+            self.z,
+            self.mode,
+            self.stops,
+            self.digital,
+            self.outer,
+            self.cylinder,
+            self.cylinder_memory,
+            self.p_supply,
+        );
         let result = self.advance_inner(values, t_start, step);
         if result.is_err() {
-            (self.z, self.mode, self.stops, self.digital, self.outer, self.cylinder, self.cylinder_memory, self.p_supply) = saved;
+            (
+                self.z,
+                self.mode,
+                self.stops,
+                self.digital,
+                self.outer,
+                self.cylinder,
+                self.cylinder_memory,
+                self.p_supply,
+            ) = saved;
             self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
             self.cylinder_rest = None;
         }
         result
     }
 
-    fn advance_inner(&mut self, values: &[f64; N_VARIABLES], t_start: f64, step: f64) -> Result<StepEvents, String> {
+    fn advance_inner(
+        &mut self,
+        values: &[f64; N_VARIABLES],
+        t_start: f64,
+        step: f64,
+    ) -> Result<StepEvents, String> {
         let mut events = StepEvents::default();
         let inputs = Inputs::new(&self.params, values);
         self.p_supply = inputs.p_supply;
         self.follow_command(&inputs, &mut events);
         let t_end = t_start + step;
         let p = self.params;
-        let time_events = self.digital.events_until(&p.hbridge, t_end) + self.outer.events_until(&p.loops, t_end);
+        let time_events =
+            self.digital.events_until(&p.hbridge, t_end) + self.outer.events_until(&p.loops, t_end);
         if time_events > MAX_TIME_EVENTS_PER_STEP {
             return Err(format!(
                 "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
@@ -792,8 +865,12 @@ impl Physics {
             }
             // At rest means an equilibrium, whatever the piece length: drifting less than
             // 1e-10 of its scale in a second (a short piece must not make motion look still).
-            let f = hydraulics::derivatives(params, cylinder, z0[XS], inputs.p_supply, inputs.f_ext);
-            if f.iter().zip(hydraulics::STATE_SCALE.iter()).all(|(d, scale)| d.abs() * REST_HORIZON <= 1e-10 * scale) {
+            let f =
+                hydraulics::derivatives(params, cylinder, z0[XS], inputs.p_supply, inputs.f_ext);
+            if f.iter()
+                .zip(hydraulics::STATE_SCALE.iter())
+                .all(|(d, scale)| d.abs() * REST_HORIZON <= 1e-10 * scale)
+            {
                 *rest = Some(key);
                 return Ok(());
             }
@@ -801,7 +878,13 @@ impl Physics {
         *rest = None;
         if h <= TINY_PIECE {
             // Far below every cylinder time constant (|lambda| h < 2e-5): one Euler step.
-            let f = hydraulics::derivatives(params, cylinder, 0.5 * (z0[XS] + z1[XS]), inputs.p_supply, inputs.f_ext);
+            let f = hydraulics::derivatives(
+                params,
+                cylinder,
+                0.5 * (z0[XS] + z1[XS]),
+                inputs.p_supply,
+                inputs.f_ext,
+            );
             let mut y = cylinder.to_array();
             for (y, d) in y.iter_mut().zip(f) {
                 *y += h * d;
@@ -817,12 +900,25 @@ impl Physics {
             end: [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
         };
         let spool = |tau: f64| (path.position(tau), path.rate(tau));
-        hydraulics::advance_with_rate(params, cylinder, h, inputs.p_supply, inputs.f_ext, spool, memory)?;
+        hydraulics::advance_with_rate(
+            params,
+            cylinder,
+            h,
+            inputs.p_supply,
+            inputs.f_ext,
+            spool,
+            memory,
+        )?;
         Ok(())
     }
 
     /// Continuous evolution over `span` seconds with state events (driver mode changes).
-    fn flow(&mut self, span_total: f64, inputs: &Inputs, events: &mut StepEvents) -> Result<(), String> {
+    fn flow(
+        &mut self,
+        span_total: f64,
+        inputs: &Inputs,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
         let mut z = self.z;
         let mut done = 0.0;
         let mut switches = 0;
@@ -856,7 +952,15 @@ impl Physics {
                     }
                 } else if may_cross(sys, &z, &next, h, passed) {
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
-                        Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, &mut self.cylinder_rest, (&z, &at, tau), inputs)?;
+                        Self::drive_cylinder(
+                            sys,
+                            &self.params.cylinder,
+                            &mut self.cylinder,
+                            &mut self.cylinder_memory,
+                            &mut self.cylinder_rest,
+                            (&z, &at, tau),
+                            inputs,
+                        )?;
                         z = at;
                         done += k as f64 * h + tau;
                         let before = self.mode;
@@ -872,7 +976,15 @@ impl Physics {
                         continue 'modes;
                     }
                 }
-                Self::drive_cylinder(sys, &self.params.cylinder, &mut self.cylinder, &mut self.cylinder_memory, &mut self.cylinder_rest, (&z, &next, h), inputs)?;
+                Self::drive_cylinder(
+                    sys,
+                    &self.params.cylinder,
+                    &mut self.cylinder,
+                    &mut self.cylinder_memory,
+                    &mut self.cylinder_rest,
+                    (&z, &next, h),
+                    inputs,
+                )?;
                 z = next;
             }
             break;
@@ -896,13 +1008,16 @@ impl Physics {
 
     pub fn read_bytes(values: &[f64; N_VARIABLES], r: &mut Reader) -> Result<Physics, String> {
         let mode_index = r.u8()? as usize;
-        let mode = *MODES.get(mode_index).ok_or_else(|| format!("state has unknown driver mode {mode_index}"))?;
+        let mode = *MODES
+            .get(mode_index)
+            .ok_or_else(|| format!("state has unknown driver mode {mode_index}"))?;
         let code = r.u8()? as i8;
         if code > 8 {
             return Err(format!("state has unknown valve stop code {code}"));
         }
         let stops = Stops { flapper: code / 3 - 1, spool: code % 3 - 1 };
-        let mut physics = Physics::start(values, 0.0).map_err(|e| format!("state holds invalid parameters: {e}"))?;
+        let mut physics = Physics::start(values, 0.0)
+            .map_err(|e| format!("state holds invalid parameters: {e}"))?;
         for k in 0..N {
             physics.z[k] = r.f64()?;
         }

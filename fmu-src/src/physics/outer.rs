@@ -33,10 +33,18 @@ impl LoopParams {
             other => return Err(format!("control_mode = {other} is not available (0, 1 or 2)")),
         };
         let (gains, feedforward) = match mode {
-            ControlMode::Flow => ([v[vr::FLOW_KP], v[vr::FLOW_KI], v[vr::FLOW_KD]], 1.0 / static_flow_gain),
+            ControlMode::Flow => {
+                ([v[vr::FLOW_KP], v[vr::FLOW_KI], v[vr::FLOW_KD]], 1.0 / static_flow_gain)
+            }
             _ => ([v[vr::POSITION_KP], v[vr::POSITION_KI], v[vr::POSITION_KD]], 0.0),
         };
-        Ok(LoopParams { mode, f_sample: v[vr::LOOP_F_SAMPLE], i_max: v[vr::LOOP_I_MAX], gains, feedforward })
+        Ok(LoopParams {
+            mode,
+            f_sample: v[vr::LOOP_F_SAMPLE],
+            i_max: v[vr::LOOP_I_MAX],
+            gains,
+            feedforward,
+        })
     }
 
     fn sample_time(&self, k: i64) -> f64 {
@@ -114,9 +122,19 @@ impl OuterLoop {
         for v in x.iter_mut() {
             *v = r.f64()?;
         }
-        if active > 1 || !x.iter().all(|v| v.is_finite()) || x[3].fract() != 0.0 || x[3].abs() > 9e15 {
+        if active > 1
+            || !x.iter().all(|v| v.is_finite())
+            || x[3].fract() != 0.0
+            || x[3].abs() > 9e15
+        {
             return Err("state holds an invalid outer-loop record".into());
         }
-        Ok(OuterLoop { active: active == 1, integral: x[0], previous_error: x[1], command: x[2], next_sample: x[3] as i64 })
+        Ok(OuterLoop {
+            active: active == 1,
+            integral: x[0],
+            previous_error: x[1],
+            command: x[2],
+            next_sample: x[3] as i64,
+        })
     }
 }

@@ -36,7 +36,10 @@ impl Log {
         self.lines().iter().any(|l| needles.iter().all(|n| l.message.contains(n)))
     }
     pub fn dump(&self) -> String {
-        self.lines().iter().map(|l| format!("[{} {} {}] {}\n", l.instance, l.status, l.category, l.message)).collect()
+        self.lines()
+            .iter()
+            .map(|l| format!("[{} {} {}] {}\n", l.instance, l.status, l.category, l.message))
+            .collect()
     }
     pub fn env(&self) -> *mut c_void {
         self as *const Log as *mut c_void
@@ -61,7 +64,9 @@ pub extern "C" fn fmi2_logger_fixed(
 ) {
     // SAFETY: env is the &Log given at instantiation; strings are C strings from the FMU.
     let log = unsafe { &*(env as *const Log) };
-    let line = unsafe { Line { instance: text(instance), status, category: text(category), message: text(message) } };
+    let line = unsafe {
+        Line { instance: text(instance), status, category: text(category), message: text(message) }
+    };
     log.0.lock().unwrap().push(line);
 }
 
@@ -77,10 +82,17 @@ pub fn fmi2_logger() -> Fmi2Logger {
     unsafe { std::mem::transmute::<Fixed, Fmi2Logger>(fmi2_logger_fixed) }
 }
 
-pub extern "C" fn fmi3_logger(env: *mut c_void, status: c_int, category: *const c_char, message: *const c_char) {
+pub extern "C" fn fmi3_logger(
+    env: *mut c_void,
+    status: c_int,
+    category: *const c_char,
+    message: *const c_char,
+) {
     // SAFETY: as in fmi2_logger_fixed.
     let log = unsafe { &*(env as *const Log) };
-    let line = unsafe { Line { instance: String::new(), status, category: text(category), message: text(message) } };
+    let line = unsafe {
+        Line { instance: String::new(), status, category: text(category), message: text(message) }
+    };
     log.0.lock().unwrap().push(line);
 }
 
@@ -113,7 +125,15 @@ impl Fmu2 {
         let name = CString::new(name).unwrap();
         let guid = CString::new(guid).unwrap();
         let c = unsafe {
-            fmi2Instantiate(name.as_ptr(), fmu_type, guid.as_ptr(), null(), &functions, fmi2False, fmi2False)
+            fmi2Instantiate(
+                name.as_ptr(),
+                fmu_type,
+                guid.as_ptr(),
+                null(),
+                &functions,
+                fmi2False,
+                fmi2False,
+            )
         };
         if c.is_null() {
             Err(log)
@@ -123,7 +143,8 @@ impl Fmu2 {
     }
 
     pub fn new(name: &str) -> Fmu2 {
-        Self::try_new(name, fmi2CoSimulation, &interface_token()).unwrap_or_else(|log| panic!("{}", log.dump()))
+        Self::try_new(name, fmi2CoSimulation, &interface_token())
+            .unwrap_or_else(|log| panic!("{}", log.dump()))
     }
 
     /// Instantiated, set up from 0 (no stop time), initialised.
@@ -152,7 +173,8 @@ impl Fmu2 {
         self.get_real(vr::TIME).1
     }
     pub fn outputs(&self) -> Vec<f64> {
-        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE].map(|r| r as u32);
+        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE]
+            .map(|r| r as u32);
         let mut v = [0.0; 6];
         assert_eq!(unsafe { fmi2GetReal(self.c, refs.as_ptr(), refs.len(), v.as_mut_ptr()) }, OK);
         v.to_vec()
@@ -201,13 +223,24 @@ impl Fmu3 {
     }
 
     pub fn new(name: &str) -> Fmu3 {
-        Self::try_new(name, &interface_token(), false).unwrap_or_else(|log| panic!("{}", log.dump()))
+        Self::try_new(name, &interface_token(), false)
+            .unwrap_or_else(|log| panic!("{}", log.dump()))
     }
 
     pub fn initialized(name: &str, stop: Option<f64>) -> Fmu3 {
         let f = Self::new(name);
         unsafe {
-            assert_eq!(fmi3EnterInitializationMode(f.i, false, 0.0, 0.0, stop.is_some(), stop.unwrap_or(0.0)), OK);
+            assert_eq!(
+                fmi3EnterInitializationMode(
+                    f.i,
+                    false,
+                    0.0,
+                    0.0,
+                    stop.is_some(),
+                    stop.unwrap_or(0.0)
+                ),
+                OK
+            );
             assert_eq!(fmi3ExitInitializationMode(f.i), OK, "{}", f.log.dump());
         }
         f
@@ -225,13 +258,18 @@ impl Fmu3 {
     /// DoStep with all out-flags preset to true/NaN to see them written.
     pub fn step(&self, t: f64, h: f64) -> (Status, [bool; 3], f64) {
         let (mut ev, mut term, mut early, mut last) = (true, true, true, f64::NAN);
-        let s = unsafe { fmi3DoStep(self.i, t, h, false, &mut ev, &mut term, &mut early, &mut last) };
+        let s =
+            unsafe { fmi3DoStep(self.i, t, h, false, &mut ev, &mut term, &mut early, &mut last) };
         (s, [ev, term, early], last)
     }
     pub fn outputs(&self) -> Vec<f64> {
-        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE].map(|r| r as u32);
+        let refs = [vr::TIME, vr::I_COIL, vr::U_DRIVER, vr::X_FLAPPER, vr::X_SPOOL, vr::Q_VALVE]
+            .map(|r| r as u32);
         let mut v = [0.0; 6];
-        assert_eq!(unsafe { fmi3GetFloat64(self.i, refs.as_ptr(), refs.len(), v.as_mut_ptr(), v.len()) }, OK);
+        assert_eq!(
+            unsafe { fmi3GetFloat64(self.i, refs.as_ptr(), refs.len(), v.as_mut_ptr(), v.len()) },
+            OK
+        );
         v.to_vec()
     }
 }
@@ -241,7 +279,6 @@ impl Drop for Fmu3 {
         unsafe { fmi3FreeInstance(self.i) }
     }
 }
-
 
 // ---------------------------------------------------------------- both versions behind one trait
 
@@ -297,7 +334,10 @@ pub trait Api: Sized {
     fn get_other(&self, r: usize) -> (Status, f64);
     /// True when a log line has `category` and contains every needle.
     fn logged(&self, category: &str, needles: &[&str]) -> bool {
-        self.log().lines().iter().any(|l| l.category == category && needles.iter().all(|n| l.message.contains(n)))
+        self.log()
+            .lines()
+            .iter()
+            .any(|l| l.category == category && needles.iter().all(|n| l.message.contains(n)))
     }
 }
 
@@ -317,7 +357,14 @@ impl Api for Fmu2 {
     }
     fn enter_init(&self, stop: Option<f64>) -> Status {
         unsafe {
-            match fmi2SetupExperiment(self.c, fmi2False, 0.0, 0.0, stop.is_some() as fmi2Boolean, stop.unwrap_or(0.0)) {
+            match fmi2SetupExperiment(
+                self.c,
+                fmi2False,
+                0.0,
+                0.0,
+                stop.is_some() as fmi2Boolean,
+                stop.unwrap_or(0.0),
+            ) {
                 Status::OK => fmi2EnterInitializationMode(self.c),
                 s => s,
             }
@@ -336,7 +383,9 @@ impl Api for Fmu2 {
         let mut v = -1;
         let s = unsafe {
             match ehsv_actuator::variables::VARIABLES[r].ty {
-                ehsv_actuator::variables::VarType::Boolean => fmi2GetBoolean(self.c, &(r as u32), 1, &mut v),
+                ehsv_actuator::variables::VarType::Boolean => {
+                    fmi2GetBoolean(self.c, &(r as u32), 1, &mut v)
+                }
                 _ => fmi2GetInteger(self.c, &(r as u32), 1, &mut v),
             }
         };
@@ -373,7 +422,8 @@ impl Api for Fmu2 {
     fn restore(&self, bytes: &[u8]) -> Status {
         unsafe {
             let mut s: fmi2FMUstate = std::ptr::null_mut();
-            let status = fmi2DeSerializeFMUstate(self.c, bytes.as_ptr().cast(), bytes.len(), &mut s);
+            let status =
+                fmi2DeSerializeFMUstate(self.c, bytes.as_ptr().cast(), bytes.len(), &mut s);
             if status != OK {
                 assert!(s.is_null(), "a refused deserialization hands out no state");
                 return status;
@@ -394,7 +444,16 @@ impl Api for Fmu3 {
         &self.log
     }
     fn enter_init(&self, stop: Option<f64>) -> Status {
-        unsafe { fmi3EnterInitializationMode(self.i, false, 0.0, 0.0, stop.is_some(), stop.unwrap_or(0.0)) }
+        unsafe {
+            fmi3EnterInitializationMode(
+                self.i,
+                false,
+                0.0,
+                0.0,
+                stop.is_some(),
+                stop.unwrap_or(0.0),
+            )
+        }
     }
     fn exit_init(&self) -> Status {
         unsafe { fmi3ExitInitializationMode(self.i) }

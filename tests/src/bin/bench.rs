@@ -98,15 +98,33 @@ type Instantiate = unsafe extern "C" fn(
     Fmi2Boolean,
 ) -> Fmi2Component;
 type FreeInstance = unsafe extern "C" fn(Fmi2Component);
-type SetupExperiment =
-    unsafe extern "C" fn(Fmi2Component, Fmi2Boolean, Fmi2Real, Fmi2Real, Fmi2Boolean, Fmi2Real) -> Fmi2Status;
+type SetupExperiment = unsafe extern "C" fn(
+    Fmi2Component,
+    Fmi2Boolean,
+    Fmi2Real,
+    Fmi2Real,
+    Fmi2Boolean,
+    Fmi2Real,
+) -> Fmi2Status;
 type NoArg = unsafe extern "C" fn(Fmi2Component) -> Fmi2Status;
-type SetReal =
-    unsafe extern "C" fn(Fmi2Component, *const Fmi2ValueReference, usize, *const Fmi2Real) -> Fmi2Status;
-type GetReal =
-    unsafe extern "C" fn(Fmi2Component, *const Fmi2ValueReference, usize, *mut Fmi2Real) -> Fmi2Status;
-type SetInteger =
-    unsafe extern "C" fn(Fmi2Component, *const Fmi2ValueReference, usize, *const Fmi2Integer) -> Fmi2Status;
+type SetReal = unsafe extern "C" fn(
+    Fmi2Component,
+    *const Fmi2ValueReference,
+    usize,
+    *const Fmi2Real,
+) -> Fmi2Status;
+type GetReal = unsafe extern "C" fn(
+    Fmi2Component,
+    *const Fmi2ValueReference,
+    usize,
+    *mut Fmi2Real,
+) -> Fmi2Status;
+type SetInteger = unsafe extern "C" fn(
+    Fmi2Component,
+    *const Fmi2ValueReference,
+    usize,
+    *const Fmi2Integer,
+) -> Fmi2Status;
 type DoStep = unsafe extern "C" fn(Fmi2Component, Fmi2Real, Fmi2Real, Fmi2Boolean) -> Fmi2Status;
 
 /// The FMI 2 functions the benchmark calls, resolved once from the shared library.
@@ -127,12 +145,14 @@ struct Fmi2 {
 impl Fmi2 {
     fn load(path: &Path) -> Result<Fmi2, String> {
         // SAFETY: loading our own cdylib runs no initialisers with preconditions.
-        let lib = unsafe { libloading::Library::new(path) }.map_err(|e| format!("cannot load {}: {e}", path.display()))?;
+        let lib = unsafe { libloading::Library::new(path) }
+            .map_err(|e| format!("cannot load {}: {e}", path.display()))?;
         macro_rules! sym {
             ($name:literal, $ty:ty) => {{
                 // SAFETY: the symbol has the standard FMI 2.0 signature $ty.
-                let s: libloading::Symbol<$ty> = unsafe { lib.get($name) }
-                    .map_err(|e| format!("{}: {e}", String::from_utf8_lossy(&$name[..$name.len() - 1])))?;
+                let s: libloading::Symbol<$ty> = unsafe { lib.get($name) }.map_err(|e| {
+                    format!("{}: {e}", String::from_utf8_lossy(&$name[..$name.len() - 1]))
+                })?;
                 *s
             }};
         }
@@ -174,22 +194,45 @@ const I_STEP: f64 = 5e-3;
 const T_SPLIT: f64 = 0.2;
 
 /// One run of the scenario on a fresh instance.
-fn run(f: &Fmi2, callbacks: &Fmi2CallbackFunctions, h: f64, t_end: f64, time_each_call: bool) -> Result<RunResult, String> {
+fn run(
+    f: &Fmi2,
+    callbacks: &Fmi2CallbackFunctions,
+    h: f64,
+    t_end: f64,
+    time_each_call: bool,
+) -> Result<RunResult, String> {
     let name = CString::new("bench").unwrap();
     let guid = CString::new(interface_token()).unwrap();
     let resources = CString::new("file:///nonexistent/resources").unwrap();
     // SAFETY: standard FMI 2.0 calling sequence on an instance we own; arrays match their counts.
     unsafe {
-        let c = (f.instantiate)(name.as_ptr(), FMI2_CO_SIMULATION, guid.as_ptr(), resources.as_ptr(), callbacks, FMI2_FALSE, FMI2_FALSE);
+        let c = (f.instantiate)(
+            name.as_ptr(),
+            FMI2_CO_SIMULATION,
+            guid.as_ptr(),
+            resources.as_ptr(),
+            callbacks,
+            FMI2_FALSE,
+            FMI2_FALSE,
+        );
         if c.is_null() {
             return Err("fmi2Instantiate returned NULL".into());
         }
         let result = (|| {
-            check("fmi2SetupExperiment", (f.setup_experiment)(c, FMI2_FALSE, 0.0, 0.0, FMI2_TRUE, t_end))?;
+            check(
+                "fmi2SetupExperiment",
+                (f.setup_experiment)(c, FMI2_FALSE, 0.0, 0.0, FMI2_TRUE, t_end),
+            )?;
             let driver = [vr::DRIVER as u32];
-            check("fmi2SetInteger(driver)", (f.set_integer)(c, driver.as_ptr(), 1, [2 as Fmi2Integer].as_ptr()))?;
+            check(
+                "fmi2SetInteger(driver)",
+                (f.set_integer)(c, driver.as_ptr(), 1, [2 as Fmi2Integer].as_ptr()),
+            )?;
             let inputs = [vr::I_REF as u32, vr::V_SUPPLY as u32];
-            check("fmi2SetReal(inputs)", (f.set_real)(c, inputs.as_ptr(), 2, [0.0, 72.0].as_ptr()))?;
+            check(
+                "fmi2SetReal(inputs)",
+                (f.set_real)(c, inputs.as_ptr(), 2, [0.0, 72.0].as_ptr()),
+            )?;
             check("fmi2EnterInitializationMode", (f.enter_init)(c))?;
             check("fmi2ExitInitializationMode", (f.exit_init)(c))?;
             let i_ref = [vr::I_REF as u32];
@@ -223,7 +266,13 @@ fn run(f: &Fmi2, callbacks: &Fmi2CallbackFunctions, h: f64, t_end: f64, time_eac
             }
             let wall = start.elapsed();
             check("fmi2Terminate", (f.terminate)(c))?;
-            Ok(RunResult { wall, split, steps, step_times: time_each_call.then_some((sum, worst)), i_final: y[0] })
+            Ok(RunResult {
+                wall,
+                split,
+                steps,
+                step_times: time_each_call.then_some((sum, worst)),
+                i_final: y[0],
+            })
         })();
         (f.free_instance)(c);
         result
@@ -256,7 +305,9 @@ fn main() -> ExitCode {
         match a.as_str() {
             "--quick" => quick = true,
             "--lib" => lib = PathBuf::from(args.next().expect("--lib PATH")),
-            "--repeat" => repeat = Some(args.next().and_then(|n| n.parse().ok()).expect("--repeat N")),
+            "--repeat" => {
+                repeat = Some(args.next().and_then(|n| n.parse().ok()).expect("--repeat N"))
+            }
             "-h" | "--help" => {
                 println!("usage: bench [--quick] [--lib PATH] [--repeat N]");
                 return ExitCode::SUCCESS;
@@ -271,7 +322,10 @@ fn main() -> ExitCode {
     let t_end = if quick { 0.05 } else { 1.0 };
 
     if !lib.exists() {
-        eprintln!("bench: {} not found: build it with `cargo build --release -p ehsv-actuator`", lib.display());
+        eprintln!(
+            "bench: {} not found: build it with `cargo build --release -p ehsv-actuator`",
+            lib.display()
+        );
         return ExitCode::FAILURE;
     }
     let f = match Fmi2::load(&lib) {
@@ -293,7 +347,15 @@ fn main() -> ExitCode {
     println!("scenario: opamp_pi, V_supply 72 V, i_ref 0 -> 5 mA, {t_end} s simulated, best/worst of {repeat} run(s)");
     println!(
         "{:>8} {:>9} {:>10} {:>10} {:>13} {:>13} {:>14} {:>14} {:>12}",
-        "h [s]", "steps", "RTF best", "RTF worst", "RTF 0-0.2 s", "RTF 0.2 s-", "doStep mean", "doStep worst", "i_end [mA]"
+        "h [s]",
+        "steps",
+        "RTF best",
+        "RTF worst",
+        "RTF 0-0.2 s",
+        "RTF 0.2 s-",
+        "doStep mean",
+        "doStep worst",
+        "i_end [mA]"
     );
     let mut failed = false;
     for h in [1e-3, 1e-4, 1e-5] {
@@ -312,7 +374,8 @@ fn main() -> ExitCode {
                                 rtf.push(t_end / r.wall.as_secs_f64());
                                 if let Some(split) = r.split {
                                     rtf_moving = rtf_moving.max(T_SPLIT / split.as_secs_f64());
-                                    rtf_resting = rtf_resting.max((t_end - T_SPLIT) / (r.wall - split).as_secs_f64());
+                                    rtf_resting = rtf_resting
+                                        .max((t_end - T_SPLIT) / (r.wall - split).as_secs_f64());
                                 }
                             }
                             Some((s, w)) => {
@@ -354,7 +417,9 @@ fn main() -> ExitCode {
         }
     }
     println!("RTF = simulated time / wall time of the untimed run (doStep + fmi2GetReal of 3 outputs per step);");
-    println!("0-0.2 s: the piston runs into its end stop (~0.05 s) and settles; 0.2 s-: it rests there");
+    println!(
+        "0-0.2 s: the piston runs into its end stop (~0.05 s) and settles; 0.2 s-: it rests there"
+    );
     if failed {
         ExitCode::FAILURE
     } else {

@@ -38,16 +38,33 @@ impl Rng {
     /// Mostly plausible step sizes and values, sometimes the awkward ones.
     fn real(&mut self) -> f64 {
         match self.below(10) {
-            0 => [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0, f64::MAX, f64::MIN_POSITIVE, -1.0][self.below(8)],
+            0 => [
+                f64::NAN,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                0.0,
+                -0.0,
+                f64::MAX,
+                f64::MIN_POSITIVE,
+                -1.0,
+            ][self.below(8)],
             1 => f64::from_bits(self.next()),
             _ => {
                 let magnitude = 10f64.powf(-9.0 + 11.0 * (self.next() as f64 / u64::MAX as f64));
-                if self.chance(4) { -magnitude } else { magnitude }
+                if self.chance(4) {
+                    -magnitude
+                } else {
+                    magnitude
+                }
             }
         }
     }
     fn value_ref(&mut self) -> u32 {
-        if self.chance(8) { self.next() as u32 } else { self.below(N_VARIABLES + 3) as u32 }
+        if self.chance(8) {
+            self.next() as u32
+        } else {
+            self.below(N_VARIABLES + 3) as u32
+        }
     }
 }
 
@@ -57,7 +74,13 @@ static LOG_LINES: AtomicU64 = AtomicU64::new(0);
 /// What the current call is (action, t, h as bits), for the watchdog's report.
 static LAST: [AtomicU64; 3] = [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)];
 
-extern "C" fn fmi2_log(_env: *mut c_void, _name: *const c_char, status: c_int, _cat: *const c_char, msg: *const c_char) {
+extern "C" fn fmi2_log(
+    _env: *mut c_void,
+    _name: *const c_char,
+    status: c_int,
+    _cat: *const c_char,
+    msg: *const c_char,
+) {
     assert!((0..=4).contains(&status));
     // SAFETY: the FMU passes a C string. FMI 2 messages are printf formats: no lone '%'.
     let msg = unsafe { std::ffi::CStr::from_ptr(msg) }.to_bytes();
@@ -114,7 +137,14 @@ fn check(status: Status) {
 
 impl Fuzzer {
     fn new(seed: u64) -> Self {
-        Fuzzer { rng: Rng(seed | 1), instances: vec![], states: vec![], bytes: vec![], junk: Box::new([0; 64]), calls: 0 }
+        Fuzzer {
+            rng: Rng(seed | 1),
+            instances: vec![],
+            states: vec![],
+            bytes: vec![],
+            junk: Box::new([0; 64]),
+            calls: 0,
+        }
     }
 
     /// An instance of the wanted version (mostly), or another, NULL, or junk.
@@ -125,8 +155,13 @@ impl Fuzzer {
             _ if self.instances.is_empty() => null_mut(),
             2 => self.instances[self.rng.below(self.instances.len())].1,
             _ => {
-                let same: Vec<_> = self.instances.iter().filter(|i| i.0 == fmi3).map(|i| i.1).collect();
-                if same.is_empty() { null_mut() } else { same[self.rng.below(same.len())] }
+                let same: Vec<_> =
+                    self.instances.iter().filter(|i| i.0 == fmi3).map(|i| i.1).collect();
+                if same.is_empty() {
+                    null_mut()
+                } else {
+                    same[self.rng.below(same.len())]
+                }
             }
         }
     }
@@ -145,7 +180,8 @@ impl Fuzzer {
     }
 
     fn token(&mut self) -> CString {
-        CString::new(if self.rng.chance(8) { "{bad%d}".to_string() } else { interface_token() }).unwrap()
+        CString::new(if self.rng.chance(8) { "{bad%d}".to_string() } else { interface_token() })
+            .unwrap()
     }
 
     /// Value references and values; `n` announced, the arrays hold at least `n` (or are NULL).
@@ -176,13 +212,35 @@ impl Fuzzer {
                     let i = if fmi3 {
                         let log = if self.rng.chance(4) { None } else { Some(fmi3_log as _) };
                         let event_mode = self.rng.chance(10);
-                        fmi3InstantiateCoSimulation(name_ptr, token.as_ptr(), null(), false, self.rng.chance(2), event_mode, false, null(), 0, null_mut(), log, None)
+                        fmi3InstantiateCoSimulation(
+                            name_ptr,
+                            token.as_ptr(),
+                            null(),
+                            false,
+                            self.rng.chance(2),
+                            event_mode,
+                            false,
+                            null(),
+                            0,
+                            null_mut(),
+                            log,
+                            None,
+                        )
                     } else {
                         let mut cb = CALLBACKS;
                         cb.logger = (!self.rng.chance(4)).then(fmi2_logger);
                         let cb_ptr = if self.rng.chance(10) { null() } else { &cb as *const _ };
-                        let ty = if self.rng.chance(10) { fmi2ModelExchange } else { fmi2CoSimulation };
-                        fmi2Instantiate(name_ptr, ty, token.as_ptr(), null(), cb_ptr, 0, self.rng.chance(2) as c_int)
+                        let ty =
+                            if self.rng.chance(10) { fmi2ModelExchange } else { fmi2CoSimulation };
+                        fmi2Instantiate(
+                            name_ptr,
+                            ty,
+                            token.as_ptr(),
+                            null(),
+                            cb_ptr,
+                            0,
+                            self.rng.chance(2) as c_int,
+                        )
                     };
                     if !i.is_null() {
                         self.instances.push((fmi3, i));
@@ -195,34 +253,53 @@ impl Fuzzer {
                     check(if fmi3 {
                         fmi3EnterInitializationMode(i, false, 0.0, t, self.rng.chance(2), stop)
                     } else {
-                        let s = fmi2SetupExperiment(i, 0, 0.0, t, self.rng.chance(2) as c_int, stop);
+                        let s =
+                            fmi2SetupExperiment(i, 0, 0.0, t, self.rng.chance(2) as c_int, stop);
                         check(s);
                         fmi2EnterInitializationMode(i)
                     })
                 }
-                4 => check(if fmi3 { fmi3ExitInitializationMode(self.instance(fmi3)) } else { fmi2ExitInitializationMode(self.instance(fmi3)) }),
+                4 => check(if fmi3 {
+                    fmi3ExitInitializationMode(self.instance(fmi3))
+                } else {
+                    fmi2ExitInitializationMode(self.instance(fmi3))
+                }),
                 5..=9 => {
                     let i = self.instance(fmi3);
                     // Mostly at the instance's own time, so steps succeed and the model moves on.
                     let now = if self.rng.chance(5) { t } else { self.current_time(i, fmi3) };
                     check(if fmi3 {
                         let (mut a, mut b, mut c, mut d) = (false, false, false, 0.0);
-                        let p = |r: &mut Rng, x: *mut bool| if r.chance(20) { null_mut() } else { x };
-                        let (pa, pb, pc) = (p(&mut self.rng, &mut a), p(&mut self.rng, &mut b), p(&mut self.rng, &mut c));
+                        let p =
+                            |r: &mut Rng, x: *mut bool| if r.chance(20) { null_mut() } else { x };
+                        let (pa, pb, pc) = (
+                            p(&mut self.rng, &mut a),
+                            p(&mut self.rng, &mut b),
+                            p(&mut self.rng, &mut c),
+                        );
                         fmi3DoStep(i, now, h, self.rng.chance(2), pa, pb, pc, &mut d)
                     } else {
                         fmi2DoStep(i, now, h, self.rng.chance(2) as c_int)
                     })
                 }
-                10 => check(if fmi3 { fmi3Terminate(self.instance(fmi3)) } else { fmi2Terminate(self.instance(fmi3)) }),
-                11 => check(if fmi3 { fmi3Reset(self.instance(fmi3)) } else { fmi2Reset(self.instance(fmi3)) }),
+                10 => check(if fmi3 {
+                    fmi3Terminate(self.instance(fmi3))
+                } else {
+                    fmi2Terminate(self.instance(fmi3))
+                }),
+                11 => check(if fmi3 {
+                    fmi3Reset(self.instance(fmi3))
+                } else {
+                    fmi2Reset(self.instance(fmi3))
+                }),
                 12..=14 => self.set_values(fmi3),
                 15..=17 => self.get_values(fmi3),
                 18 => {
                     let names: Vec<CString> = (0..self.rng.below(4))
                         .map(|_| {
                             let known = LOG_CATEGORIES[self.rng.below(LOG_CATEGORIES.len())].0;
-                            CString::new(if self.rng.chance(5) { "logNonsense%s" } else { known }).unwrap()
+                            CString::new(if self.rng.chance(5) { "logNonsense%s" } else { known })
+                                .unwrap()
                         })
                         .collect();
                     let mut ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
@@ -239,10 +316,12 @@ impl Fuzzer {
                 }
                 19 | 20 => {
                     let i = self.instance(fmi3);
-                    let mut s: *mut c_void = if self.rng.chance(3) { self.state() } else { null_mut() };
+                    let mut s: *mut c_void =
+                        if self.rng.chance(3) { self.state() } else { null_mut() };
                     let reused = !s.is_null();
                     let slot = if self.rng.chance(20) { null_mut() } else { &mut s as *mut _ };
-                    let status = if fmi3 { fmi3GetFMUState(i, slot) } else { fmi2GetFMUstate(i, slot) };
+                    let status =
+                        if fmi3 { fmi3GetFMUState(i, slot) } else { fmi2GetFMUstate(i, slot) };
                     check(status);
                     if status == Status::OK && !reused && !s.is_null() {
                         self.states.push(s);
@@ -259,7 +338,11 @@ impl Fuzzer {
                     let k = self.rng.below(self.states.len());
                     let mut s = self.states[k];
                     let i = self.instance(fmi3);
-                    let status = if fmi3 { fmi3FreeFMUState(i, &mut s) } else { fmi2FreeFMUstate(i, &mut s) };
+                    let status = if fmi3 {
+                        fmi3FreeFMUState(i, &mut s)
+                    } else {
+                        fmi2FreeFMUstate(i, &mut s)
+                    };
                     check(status);
                     if status == Status::OK {
                         assert!(s.is_null());
@@ -273,8 +356,16 @@ impl Fuzzer {
                     let (mut r, mut b, mut n, mut st, mut s) = (0.0, 0, 0, Status::OK, null());
                     let kind = self.rng.below(6) as c_int - 1;
                     check(match self.rng.below(6) {
-                        0 => fmi2GetStatus(i, kind, if self.rng.chance(5) { null_mut() } else { &mut st }),
-                        1 => fmi2GetRealStatus(i, kind, if self.rng.chance(5) { null_mut() } else { &mut r }),
+                        0 => fmi2GetStatus(
+                            i,
+                            kind,
+                            if self.rng.chance(5) { null_mut() } else { &mut st },
+                        ),
+                        1 => fmi2GetRealStatus(
+                            i,
+                            kind,
+                            if self.rng.chance(5) { null_mut() } else { &mut r },
+                        ),
                         2 => fmi2GetIntegerStatus(i, kind, &mut n),
                         3 => fmi2GetBooleanStatus(i, kind, &mut b),
                         4 => fmi2GetStringStatus(i, kind, &mut s),
@@ -290,16 +381,32 @@ impl Fuzzer {
                         (false, _) => fmi2GetRealOutputDerivatives(i, &1, 1, &1, &mut x),
                         (true, 0) => fmi3EnterEventMode(i),
                         (true, 1) => fmi3GetNumberOfContinuousStates(i, &mut n),
-                        (true, 2) => fmi3UpdateDiscreteStates(i, &mut b, &mut b, &mut b, &mut b, &mut b, &mut x),
-                        (true, _) => fmi3GetDirectionalDerivative(i, &1, 1, &2, 1, &1.0, 1, &mut x, 1),
+                        (true, 2) => fmi3UpdateDiscreteStates(
+                            i, &mut b, &mut b, &mut b, &mut b, &mut b, &mut x,
+                        ),
+                        (true, _) => {
+                            fmi3GetDirectionalDerivative(i, &1, 1, &2, 1, &1.0, 1, &mut x, 1)
+                        }
                     })
                 }
                 30 => {
                     // Other instantiation functions and free functions.
                     let (name, token) = (self.name(), self.token());
-                    let i = fmi3InstantiateModelExchange(name.as_ptr(), token.as_ptr(), null(), false, false, null_mut(), Some(fmi3_log));
+                    let i = fmi3InstantiateModelExchange(
+                        name.as_ptr(),
+                        token.as_ptr(),
+                        null(),
+                        false,
+                        false,
+                        null_mut(),
+                        Some(fmi3_log),
+                    );
                     assert!(i.is_null());
-                    assert!(!fmi2GetVersion().is_null() && !fmi3GetVersion().is_null() && !fmi2GetTypesPlatform().is_null());
+                    assert!(
+                        !fmi2GetVersion().is_null()
+                            && !fmi3GetVersion().is_null()
+                            && !fmi2GetTypesPlatform().is_null()
+                    );
                 }
                 _ => {
                     // The other FMI 3 types (no variables of them: any reference is an error).
@@ -330,7 +437,11 @@ impl Fuzzer {
         let mut t = 0.0;
         let vr = 0; // time
         unsafe {
-            if fmi3 { fmi3GetFloat64(i, &vr, 1, &mut t, 1) } else { fmi2GetReal(i, &vr, 1, &mut t) };
+            if fmi3 {
+                fmi3GetFloat64(i, &vr, 1, &mut t, 1)
+            } else {
+                fmi2GetReal(i, &vr, 1, &mut t)
+            };
         }
         t
     }
@@ -346,9 +457,17 @@ impl Fuzzer {
         unsafe {
             if self.rng.chance(8) {
                 // The other version's FreeInstance refuses: the instance stays alive.
-                if fmi3 { fmi2FreeInstance(i) } else { fmi3FreeInstance(i) }
+                if fmi3 {
+                    fmi2FreeInstance(i)
+                } else {
+                    fmi3FreeInstance(i)
+                }
             }
-            if fmi3 { fmi3FreeInstance(i) } else { fmi2FreeInstance(i) }
+            if fmi3 {
+                fmi3FreeInstance(i)
+            } else {
+                fmi2FreeInstance(i)
+            }
         }
     }
 
@@ -398,7 +517,11 @@ impl Fuzzer {
         let mut size = 0usize;
         let size_ptr = if self.rng.chance(20) { null_mut() } else { &mut size as *mut usize };
         unsafe {
-            let status = if fmi3 { fmi3SerializedFMUStateSize(i, s, size_ptr) } else { fmi2SerializedFMUstateSize(i, s, size_ptr) };
+            let status = if fmi3 {
+                fmi3SerializedFMUStateSize(i, s, size_ptr)
+            } else {
+                fmi2SerializedFMUstateSize(i, s, size_ptr)
+            };
             check(status);
             if status != Status::OK {
                 return;
@@ -453,7 +576,17 @@ impl Fuzzer {
 
     /// Frees every state and instance (a leak checker sees nothing left).
     fn finish(&mut self) {
-        let janitor = unsafe { fmi2Instantiate(c"janitor".as_ptr(), fmi2CoSimulation, self.token_ok().as_ptr(), null(), null(), 0, 0) };
+        let janitor = unsafe {
+            fmi2Instantiate(
+                c"janitor".as_ptr(),
+                fmi2CoSimulation,
+                self.token_ok().as_ptr(),
+                null(),
+                null(),
+                0,
+                0,
+            )
+        };
         assert!(!janitor.is_null());
         for mut s in self.states.drain(..) {
             assert_eq!(unsafe { fmi2FreeFMUstate(janitor, &mut s) }, Status::OK);
@@ -461,7 +594,13 @@ impl Fuzzer {
         unsafe { fmi2FreeInstance(janitor) };
         while !self.instances.is_empty() {
             let (fmi3, i) = self.instances.pop().unwrap();
-            unsafe { if fmi3 { fmi3FreeInstance(i) } else { fmi2FreeInstance(i) } }
+            unsafe {
+                if fmi3 {
+                    fmi3FreeInstance(i)
+                } else {
+                    fmi2FreeInstance(i)
+                }
+            }
         }
     }
 
@@ -519,7 +658,6 @@ fn main() {
         LOG_LINES.load(Relaxed)
     );
 }
-
 
 #[cfg(test)]
 mod tests {
