@@ -147,7 +147,6 @@ struct ModelStructure {
     initial_unknowns: Unknowns,
 }
 
-/// `dependencies` is omitted: the output may depend on every known (the safe default).
 #[derive(Serialize)]
 struct Unknowns {
     #[serde(rename = "Unknown")]
@@ -159,6 +158,9 @@ struct Unknown {
     /// 1-based position in ModelVariables (not the value reference).
     #[serde(rename = "@index")]
     index: usize,
+    /// 1-based indices of the knowns, ascending; "" = depends on none.
+    #[serde(rename = "@dependencies")]
+    dependencies: String,
 }
 
 fn scalar_variable(value_reference: u32, v: &'static Variable) -> ScalarVariable {
@@ -190,9 +192,13 @@ fn scalar_variable(value_reference: u32, v: &'static Variable) -> ScalarVariable
 }
 
 /// ModelVariables lists the table in order, so the 1-based index is position + 1.
-fn unknowns(rows: impl Iterator<Item = (u32, &'static Variable)>) -> Unknowns {
-    let position = |vr: u32| table().position(|(r, _)| r == vr).expect("row of the table");
-    Unknowns { unknowns: rows.map(|(vr, _)| Unknown { index: position(vr) + 1 }).collect() }
+fn unknowns(rows: &[(u32, Vec<u32>)]) -> Unknowns {
+    let index = |vr: u32| table().position(|(r, _)| r == vr).expect("row of the table") + 1;
+    let unknown = |(vr, knowns): &(u32, Vec<u32>)| Unknown {
+        index: index(*vr),
+        dependencies: knowns.iter().map(|&k| index(k).to_string()).collect::<Vec<_>>().join(" "),
+    };
+    Unknowns { unknowns: rows.iter().map(unknown).collect() }
 }
 
 pub(crate) fn model_description() -> ModelDescription {
@@ -234,8 +240,8 @@ pub(crate) fn model_description() -> ModelDescription {
             scalar_variables: table().map(|(vr, v)| scalar_variable(vr, v)).collect(),
         },
         model_structure: ModelStructure {
-            outputs: unknowns(outputs()),
-            initial_unknowns: unknowns(initial_unknowns()),
+            outputs: unknowns(&dependencies().outputs),
+            initial_unknowns: unknowns(&dependencies().initial_unknowns),
         },
     }
 }

@@ -150,11 +150,13 @@ struct ModelStructure {
     initial_unknowns: Vec<Unknown>,
 }
 
-/// `dependencies` is omitted: the unknown may depend on every known (the safe default).
 #[derive(Serialize)]
 struct Unknown {
     #[serde(rename = "@valueReference")]
     value_reference: u32,
+    /// Value references of the knowns, ascending; "" = depends on none.
+    #[serde(rename = "@dependencies")]
+    dependencies: String,
 }
 
 fn model_variable(value_reference: u32, v: &'static Variable) -> ModelVariable {
@@ -186,8 +188,12 @@ fn model_variable(value_reference: u32, v: &'static Variable) -> ModelVariable {
     }
 }
 
-fn unknowns(rows: impl Iterator<Item = (u32, &'static Variable)>) -> Vec<Unknown> {
-    rows.map(|(value_reference, _)| Unknown { value_reference }).collect()
+fn unknowns(rows: &[(u32, Vec<u32>)]) -> Vec<Unknown> {
+    let unknown = |(vr, knowns): &(u32, Vec<u32>)| Unknown {
+        value_reference: *vr,
+        dependencies: knowns.iter().map(u32::to_string).collect::<Vec<_>>().join(" "),
+    };
+    rows.iter().map(unknown).collect()
 }
 
 pub(crate) fn model_description() -> ModelDescription {
@@ -231,8 +237,8 @@ pub(crate) fn model_description() -> ModelDescription {
             variables: table().map(|(vr, v)| model_variable(vr, v)).collect(),
         },
         model_structure: ModelStructure {
-            outputs: unknowns(outputs()),
-            initial_unknowns: unknowns(initial_unknowns()),
+            outputs: unknowns(&dependencies().outputs),
+            initial_unknowns: unknowns(&dependencies().initial_unknowns),
         },
     }
 }

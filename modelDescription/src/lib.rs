@@ -5,12 +5,14 @@
 //! serializer writes fields named `@x` as attributes and other fields as child elements.
 //! Nothing about a variable is written down here: every fact comes from the table.
 
+use dependencies::dependencies;
 use ehsv_actuator::units::{Unit, UNITS};
 use ehsv_actuator::variables::{
     Causality, Initial, VarType, Variability, Variable, ENUMERATIONS, VARIABLES,
 };
 use serde::Serialize;
 
+mod dependencies;
 mod fmi2;
 mod fmi3;
 mod markdown;
@@ -217,12 +219,10 @@ fn table() -> impl Iterator<Item = (u32, &'static Variable)> {
     VARIABLES.iter().enumerate().map(|(i, v)| (v.value_reference(i), v))
 }
 
-/// Outputs listed in ModelStructure; all of them are also initial unknowns (initial = calculated).
+/// Outputs listed in ModelStructure; all of them are also initial unknowns (initial =
+/// calculated), and no parameter is calculated.
 fn outputs() -> impl Iterator<Item = (u32, &'static Variable)> {
     table().filter(|(_, v)| v.causality == Causality::Output)
-}
-fn initial_unknowns() -> impl Iterator<Item = (u32, &'static Variable)> {
-    outputs().filter(|(_, v)| v.initial() == Some(Initial::Calculated))
 }
 
 #[cfg(test)]

@@ -278,3 +278,40 @@ fn log_categories_are_the_c_api_list_in_schema_order() {
         );
     }
 }
+
+/// Physics the probe must find: no output feeds an input through within a step; the
+/// initial equilibrium follows the commands and the parameters that size it.
+#[test]
+fn dependencies_are_the_measured_physics() {
+    let deps = dependencies();
+    let names = |knowns: &[u32]| -> Vec<&str> {
+        knowns.iter().map(|&k| VARIABLES[k as usize].name).collect()
+    };
+    for (output, knowns) in &deps.outputs {
+        assert!(
+            knowns.is_empty(),
+            "{} feeds through {:?}",
+            VARIABLES[*output as usize].name,
+            names(knowns)
+        );
+    }
+    for (output, knowns) in &deps.initial_unknowns {
+        assert_eq!(VARIABLES[*output as usize].initial(), Some(Initial::Calculated));
+        assert!(knowns.windows(2).all(|w| w[0] < w[1]), "ascending");
+        println!("{}: {}", VARIABLES[*output as usize].name, names(knowns).join(" "));
+    }
+    let of = |name: &str| {
+        let vr = VARIABLES.iter().position(|v| v.name == name).unwrap() as u32;
+        names(&deps.initial_unknowns.iter().find(|(o, _)| *o == vr).unwrap().1)
+    };
+    // At the rail the coil current is the rail voltage over the resistance, and the
+    // ideal source (driver 0) has no rail.
+    for known in ["i_ref", "V_supply", "Q_ref", "x_ref", "driver", "control_mode", "coil.R"] {
+        assert!(of("i_coil").contains(&known), "i_coil on {known}: {:?}", of("i_coil"));
+    }
+    assert!(of("x_spool").contains(&"valve.Kw"));
+    // A spool at its stop leaves the rest of the torque to the flapper's stiffness.
+    assert!(of("x_flapper").contains(&"valve.Kf") && of("x_flapper").contains(&"V_supply"));
+    assert!(of("p_A").contains(&"p_supply") && of("p_A").contains(&"F_ext"));
+    assert!(!of("i_coil").contains(&"cylinder.mass"), "{:?}", of("i_coil"));
+}
