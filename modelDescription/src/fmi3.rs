@@ -17,6 +17,14 @@ pub(crate) struct ModelDescription {
     generation_tool: &'static str,
     #[serde(rename = "@version")]
     version: &'static str,
+    #[serde(rename = "@author")]
+    author: &'static str,
+    #[serde(rename = "@copyright")]
+    copyright: &'static str,
+    #[serde(rename = "@license")]
+    license: &'static str,
+    #[serde(rename = "@generationDateAndTime")]
+    generation_date_and_time: String,
     #[serde(rename = "@variableNamingConvention")]
     variable_naming_convention: &'static str,
     #[serde(rename = "CoSimulation")]
@@ -204,6 +212,10 @@ pub(crate) fn model_description() -> ModelDescription {
         description: MODEL_DESCRIPTION,
         generation_tool: GENERATION_TOOL,
         version: VERSION,
+        author: AUTHOR,
+        copyright: COPYRIGHT,
+        license: LICENSE,
+        generation_date_and_time: generation_date_and_time(),
         variable_naming_convention: "structured",
         co_simulation: CoSimulation {
             model_identifier: MODEL_IDENTIFIER,

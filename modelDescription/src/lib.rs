@@ -13,10 +13,12 @@ use ehsv_actuator::variables::{
 use serde::Serialize;
 
 mod dependencies;
+mod documentation;
 mod fmi2;
 mod fmi3;
 mod markdown;
 
+pub use documentation::{documentation_html, CURRENT_STEP_CSV, PAPER_CITATION};
 pub use markdown::{enumerations_markdown, variables_markdown};
 
 /// `modelIdentifier`: the shared-library name inside `binaries/<platform>/`.
@@ -30,6 +32,42 @@ pub const GENERATION_TOOL: &str = concat!(
     " (Rust, serde + quick-xml)"
 );
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+pub const AUTHOR: &str = "The EhsvActuator developers";
+pub const COPYRIGHT: &str = "Copyright (c) 2026 The EhsvActuator developers";
+/// The workspace's licence (Cargo.toml); the text is LICENSE at the repository root and
+/// documentation/licenses/license.txt in the archives.
+pub const LICENSE: &str = concat!("SPDX-License-Identifier: ", env!("CARGO_PKG_LICENSE"));
+pub const LICENSE_TEXT: &str = include_str!("../../LICENSE");
+
+/// `generationDateAndTime` (xs:dateTime, UTC): SOURCE_DATE_EPOCH if set (reproducible
+/// builds), else now.
+pub fn generation_date_and_time() -> String {
+    let seconds = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.trim().parse::<u64>().ok())
+        .unwrap_or_else(|| {
+            let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH);
+            now.map(|d| d.as_secs()).unwrap_or(0)
+        });
+    utc_date_time(seconds)
+}
+
+/// Seconds since 1970 as `YYYY-MM-DDThh:mm:ssZ` (proleptic Gregorian calendar).
+fn utc_date_time(seconds: u64) -> String {
+    let (days, rest) = ((seconds / 86400) as i64, seconds % 86400);
+    // Days to civil date (H. Hinnant's algorithm): eras of 400 years from 0000-03-01.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    let (h, m, s) = (rest / 3600, rest / 60 % 60, rest % 60);
+    format!("{year:04}-{month:02}-{day:02}T{h:02}:{m:02}:{s:02}Z")
+}
 
 /// Default experiment: 10 ms at 100 us communication steps.
 const START_TIME: f64 = 0.0;

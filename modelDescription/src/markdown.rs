@@ -5,10 +5,22 @@ use ehsv_actuator::variables::Enumeration;
 
 /// One row per variable, in value-reference order.
 pub fn variables_markdown() -> String {
-    let mut md = String::from(
-        "| vr | name | causality | unit (display) | start | range | description |\n\
-         |---:|------|-----------|----------------|------:|-------|-------------|\n",
-    );
+    let rows = variable_rows();
+    let mut md = String::new();
+    for (i, row) in rows.iter().enumerate() {
+        let cells: Vec<String> = row.iter().map(|c| cell(c)).collect();
+        md += &format!("| {} |\n", cells.join(" | "));
+        if i == 0 {
+            md += "|---:|------|-----------|----------------|------:|-------|-------------|\n";
+        }
+    }
+    md
+}
+
+/// The variable table as text cells, header first; names in `code` spans.
+pub(crate) fn variable_rows() -> Vec<[String; 7]> {
+    let header = ["vr", "name", "causality", "unit (display)", "start", "range", "description"];
+    let mut rows = vec![header.map(String::from)];
     for (vr, v) in table() {
         let unit = match (v.unit, v.display_unit) {
             (Some(u), Some(d)) => format!("{u} ({d})"),
@@ -16,17 +28,17 @@ pub fn variables_markdown() -> String {
             (None, _) => String::new(),
         };
         let range = if v.min.is_some() || v.max.is_some() { v.range_text() } else { String::new() };
-        md += &format!(
-            "| {vr} | `{}` | {} | {} | {} | {} | {} |\n",
-            v.name,
-            causality_name(v.causality),
-            cell(&unit),
+        rows.push([
+            vr.to_string(),
+            format!("`{}`", v.name),
+            causality_name(v.causality).to_string(),
+            unit,
             start_text(v),
-            cell(&range),
-            cell(v.description),
-        );
+            range,
+            v.description.to_string(),
+        ]);
     }
-    md
+    rows
 }
 
 /// One list per enumeration type: value, item name, description.

@@ -315,3 +315,43 @@ fn dependencies_are_the_measured_physics() {
     assert!(of("p_A").contains(&"p_supply") && of("p_A").contains(&"F_ext"));
     assert!(!of("i_coil").contains(&"cylinder.mass"), "{:?}", of("i_coil"));
 }
+
+#[test]
+fn both_xmls_say_who_made_them_when_and_under_which_licence() {
+    for xml in [fmi2_xml(), fmi3_xml()] {
+        let root = parse(&xml);
+        assert_eq!(root.attr("author"), AUTHOR);
+        assert!(root.attr("copyright").starts_with("Copyright (c) 2026"));
+        assert_eq!(root.attr("license"), "SPDX-License-Identifier: MIT");
+        let date = root.attr("generationDateAndTime");
+        assert_eq!((date.len(), &date[10..11], &date[19..]), (20, "T", "Z"), "{date}");
+    }
+    assert!(LICENSE_TEXT.starts_with("MIT License"));
+}
+
+#[test]
+fn dates_are_utc_xs_date_times() {
+    assert_eq!(utc_date_time(0), "1970-01-01T00:00:00Z");
+    assert_eq!(utc_date_time(951_782_400), "2000-02-29T00:00:00Z");
+    assert_eq!(utc_date_time(1_795_405_200), "2026-11-23T03:40:00Z");
+    assert_eq!(utc_date_time(4_102_444_799), "2099-12-31T23:59:59Z");
+}
+
+#[test]
+fn documentation_has_the_paper_the_modes_an_example_and_every_variable() {
+    let html = documentation_html(&["fig_1.png".to_string()]);
+    assert_eq!(html.matches("<tr>").count(), 1 + VARIABLES.len());
+    assert!(html.contains("<code>coil.L</code>"));
+    assert!(html.contains("Abdulmalek") && html.contains("Legged Robot's Applications"));
+    for e in ENUMERATIONS {
+        for (_, name, _) in e.items {
+            assert!(html.contains(&format!("<code>{name}</code>")), "{name}");
+        }
+    }
+    assert!(html.contains("from fmpy import simulate_fmu") && html.contains("current_step.csv"));
+    assert!(html.contains("src=\"figures/fig_1.png\""));
+    assert!(!documentation_html(&[]).contains("<h2>Figures</h2>"));
+    // The documented input file is the 0 -> 5 mA step at 1 ms.
+    let rows: Vec<&str> = CURRENT_STEP_CSV.lines().collect();
+    assert_eq!((rows[0], rows[2], rows[3]), ("time,i_ref", "0.001,0", "0.001,0.005"));
+}
