@@ -38,6 +38,8 @@ stage bench cargo run --release -p ehsv-tests --bin bench -- --quick
 stage fmt cargo fmt --all -- --check
 stage clippy cargo clippy --workspace --all-targets --release -- -D warnings
 stage doc env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace
+stage ruff-check .venv/bin/ruff check cosim-examples tests/python
+stage ruff-format .venv/bin/ruff format --check cosim-examples tests/python
 
 # ---- robustness and conformance (see README "Robustness and conformance"); the fuzz and
 # robustness tests already ran in cargo-test, the importer/state tests in pytest.
