@@ -10,6 +10,8 @@
 pub mod fmi2;
 pub mod fmi3;
 pub mod fmi_common;
+mod fmi_macros;
+mod fmi_state_machine;
 pub mod hydraulics;
 pub mod model;
 pub mod physics;
