@@ -1,5 +1,5 @@
 //! The FMI call sequence as one table, the same for FMI 2.0 and FMI 3.0: for each kind of
-//! call ([`Call`]) the set of instance states ([`State`]) it is allowed in. The shared
+//! call (`Call`) the set of instance states (`State`) it is allowed in. The shared
 //! `with_instance` frame looks every exported function up here before running it.
 //!
 //! Error semantics (the README's "FMI call sequence and errors" says the same):
@@ -10,7 +10,7 @@
 //!   Error undefined; staying usable is the safe reading of that.
 //! * A call that was accepted and then failed (the step computation of doStep, or an
 //!   internal error caught at the C boundary) returns Error and puts the instance in
-//!   [`State::Error`]. There, as FMI 2.0.4 (2.1.3) and FMI 3.0 (2.2.3) define, only
+//!   the `Error` state. There, as FMI 2.0.4 (2.1.3) and FMI 3.0 (2.2.3) define, only
 //!   SetFMUState (to a state taken before), Reset and FreeInstance go on; getters and the
 //!   FMU-state bookkeeping answer for diagnostics; everything else is refused.
 

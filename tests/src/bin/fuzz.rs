@@ -588,8 +588,7 @@ impl Fuzzer {
     /// sees nothing left).
     fn finish(&mut self) {
         self.states.clear();
-        while !self.instances.is_empty() {
-            let (fmi3, i) = self.instances.pop().unwrap();
+        while let Some((fmi3, i)) = self.instances.pop() {
             unsafe {
                 if fmi3 {
                     fmi3FreeInstance(i)
