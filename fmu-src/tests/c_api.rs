@@ -110,17 +110,24 @@ fn fmi2_happy_path() {
         assert!((out[0] - 5.0 * h).abs() < 1e-15);
 
         let mut sat = -1;
-        // 10 mA through the op-amp driver at 72 V is far from its rails (the step loop
-        // test drives 20 mA to reach them): the flag must read false, not just be 0 or 1.
+        // The flag must read the driver's state, not just be 0 or 1 (which the type
+        // guarantees): i_ref = 10 mA was set during initialisation, so the op-amp starts
+        // in equilibrium inside its rails (false); a 20 mA reversal needs more than the
+        // 72 V supply across the coil, so one step later it sits on a rail (true).
         assert_eq!(fmi2GetBoolean(f.c, &(vr::DRIVER_SATURATED as u32), 1, &mut sat), OK);
         assert_eq!(sat, fmi2False);
+        assert_eq!(f.set_real(vr::I_REF, -0.01), OK);
+        assert_eq!(f.step(5.0 * h, h), OK);
+        assert_eq!(fmi2GetBoolean(f.c, &(vr::DRIVER_SATURATED as u32), 1, &mut sat), OK);
+        assert_eq!(sat, fmi2True, "a 20 mA reversal drives the op-amp onto a rail");
+        assert_eq!(f.set_real(vr::I_REF, 0.01), OK);
         let mut driver = -1;
         assert_eq!(fmi2GetInteger(f.c, &(vr::DRIVER as u32), 1, &mut driver), OK);
         assert_eq!(driver, 2);
 
         let mut t = 0.0;
         assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut t), OK);
-        assert!((t - 5.0 * h).abs() < 1e-15);
+        assert!((t - 6.0 * h).abs() < 1e-15);
         let mut terminated = fmi2True;
         assert_eq!(fmi2GetBooleanStatus(f.c, fmi2Terminated, &mut terminated), OK);
         assert_eq!(terminated, fmi2False);
@@ -604,6 +611,7 @@ fn fmi3_happy_path_and_do_step_out_flags() {
         assert_eq!(driver, 2);
         let mut sat = true;
         assert_eq!(fmi3GetBoolean(f.i, &(vr::DRIVER_SATURATED as u32), 1, &mut sat, 1), OK);
+        assert!(!sat, "in equilibrium at the 10 mA set during initialisation: inside the rails");
         assert_eq!(fmi3Terminate(f.i), OK);
         assert_eq!(f.get(vr::X_SPOOL).0, OK);
         assert_eq!(f.step(0.5 + 5.0 * h, h).0, ERROR);
