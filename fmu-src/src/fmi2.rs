@@ -135,7 +135,8 @@ fmi_functions! {
     /// No categories: all on/off; otherwise the named ones.
     fn fmi2SetDebugLogging(c: fmi2Component, loggingOn: fmi2Boolean, nCategories: usize,
         categories: *const fmi2String)
-        SetDebugLogging => |inst| inst.set_debug_logging(loggingOn != fmi2False, nCategories, categories);
+        SetDebugLogging => |inst| inst.set_debug_logging(loggingOn != fmi2False, nCategories,
+            categories);
 
     /// The tolerance is ignored (the integrator is exact); a defined stopTime bounds DoStep.
     fn fmi2SetupExperiment(c: fmi2Component, _toleranceDefined: fmi2Boolean, _tolerance: fmi2Real,
@@ -222,7 +223,8 @@ fmi_functions! {
 
     /// fmi2DoStep never returns fmi2Pending, so there is never a step to cancel.
     fn fmi2CancelStep(c: fmi2Component) Unsupported => |inst| {
-        inst.error("no asynchronous step is in progress (fmi2DoStep is synchronous, it never returns fmi2Pending)")
+        inst.error("no asynchronous step is in progress (fmi2DoStep is synchronous,
+            it never returns fmi2Pending)")
     };
 
     /// Status of an asynchronous step: never available (Discard, as the standard asks for

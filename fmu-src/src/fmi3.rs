@@ -267,20 +267,24 @@ fmi_functions! {
     /// No String variables: only `nValueReferences = 0` succeeds.
     fn fmi3GetString(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
         nValueReferences: usize, _values: *mut fmi3String, nValues: usize)
-        GetValues => |inst| inst.no_values("String", valueReferences, nValueReferences, Some(nValues));
+        GetValues => |inst| inst.no_values("String", valueReferences, nValueReferences,
+            Some(nValues));
     /// No String variables: only `nValueReferences = 0` succeeds.
     fn fmi3SetString(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
         nValueReferences: usize, _values: *const fmi3String, nValues: usize)
-        SetValues => |inst| inst.no_values("String", valueReferences, nValueReferences, Some(nValues));
+        SetValues => |inst| inst.no_values("String", valueReferences, nValueReferences,
+            Some(nValues));
     /// No Binary variables: only `nValueReferences = 0` succeeds.
     fn fmi3GetBinary(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
         nValueReferences: usize, _valueSizes: *mut usize, _values: *mut fmi3Binary, nValues: usize)
-        GetValues => |inst| inst.no_values("Binary", valueReferences, nValueReferences, Some(nValues));
+        GetValues => |inst| inst.no_values("Binary", valueReferences, nValueReferences,
+            Some(nValues));
     /// No Binary variables: only `nValueReferences = 0` succeeds.
     fn fmi3SetBinary(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
         nValueReferences: usize, _valueSizes: *const usize, _values: *const fmi3Binary,
         nValues: usize)
-        SetValues => |inst| inst.no_values("Binary", valueReferences, nValueReferences, Some(nValues));
+        SetValues => |inst| inst.no_values("Binary", valueReferences, nValueReferences,
+            Some(nValues));
     /// No clocks: only `nValueReferences = 0` succeeds.
     fn fmi3GetClock(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
         nValueReferences: usize, _values: *mut fmi3Clock)
@@ -305,7 +309,8 @@ not_supported! {
     /// Not supported (no event mode).
     fn fmi3EnterEventMode(instance: fmi3Instance) " (no event mode)";
     /// Not supported (providesPerElementDependencies = false; the dependencies are in the XML).
-    fn fmi3GetNumberOfVariableDependencies(instance: fmi3Instance, valueReference: fmi3ValueReference,
+    fn fmi3GetNumberOfVariableDependencies(instance: fmi3Instance,
+        valueReference: fmi3ValueReference,
         nDependencies: *mut usize) " (providesPerElementDependencies = false)";
     /// Not supported (providesPerElementDependencies = false).
     fn fmi3GetVariableDependencies(instance: fmi3Instance, dependent: fmi3ValueReference,
@@ -313,11 +318,13 @@ not_supported! {
         elementIndicesOfIndependents: *mut usize, dependencyKinds: *mut fmi3DependencyKind,
         nDependencies: usize) " (providesPerElementDependencies = false)";
     /// Not supported (providesDirectionalDerivative = false).
-    fn fmi3GetDirectionalDerivative(instance: fmi3Instance, unknowns: *const fmi3ValueReference, nUnknowns: usize,
+    fn fmi3GetDirectionalDerivative(instance: fmi3Instance, unknowns: *const fmi3ValueReference,
+        nUnknowns: usize,
         knowns: *const fmi3ValueReference, nKnowns: usize, seed: *const fmi3Float64, nSeed: usize,
         sensitivity: *mut fmi3Float64, nSensitivity: usize) " (providesDirectionalDerivative = false)";
     /// Not supported (providesAdjointDerivatives = false).
-    fn fmi3GetAdjointDerivative(instance: fmi3Instance, unknowns: *const fmi3ValueReference, nUnknowns: usize,
+    fn fmi3GetAdjointDerivative(instance: fmi3Instance, unknowns: *const fmi3ValueReference,
+        nUnknowns: usize,
         knowns: *const fmi3ValueReference, nKnowns: usize, seed: *const fmi3Float64, nSeed: usize,
         sensitivity: *mut fmi3Float64, nSensitivity: usize) " (providesAdjointDerivatives = false)";
     /// Not supported (no structural parameters).
@@ -325,53 +332,69 @@ not_supported! {
     /// Not supported (no structural parameters).
     fn fmi3ExitConfigurationMode(instance: fmi3Instance) " (no structural parameters)";
     /// Not supported (no clocks).
-    fn fmi3GetIntervalDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3GetIntervalDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
         intervals: *mut fmi3Float64, qualifiers: *mut fmi3IntervalQualifier) " (no clocks)";
     /// Not supported (no clocks).
-    fn fmi3GetIntervalFraction(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3GetIntervalFraction(instance: fmi3Instance,
+        valueReferences: *const fmi3ValueReference, nValueReferences: usize,
         counters: *mut fmi3UInt64, resolutions: *mut fmi3UInt64,
         qualifiers: *mut fmi3IntervalQualifier) " (no clocks)";
     /// Not supported (no clocks).
-    fn fmi3GetShiftDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3GetShiftDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
         shifts: *mut fmi3Float64) " (no clocks)";
     /// Not supported (no clocks).
-    fn fmi3GetShiftFraction(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3GetShiftFraction(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
         counters: *mut fmi3UInt64, resolutions: *mut fmi3UInt64) " (no clocks)";
     /// Not supported (no clocks).
-    fn fmi3SetIntervalDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3SetIntervalDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
         intervals: *const fmi3Float64) " (no clocks)";
     /// Not supported (no clocks).
-    fn fmi3SetIntervalFraction(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3SetIntervalFraction(instance: fmi3Instance,
+        valueReferences: *const fmi3ValueReference, nValueReferences: usize,
         counters: *const fmi3UInt64, resolutions: *const fmi3UInt64) " (no clocks)";
     /// Not supported (no clocks).
-    fn fmi3SetShiftDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3SetShiftDecimal(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
         shifts: *const fmi3Float64) " (no clocks)";
     /// Not supported (no clocks).
-    fn fmi3SetShiftFraction(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3SetShiftFraction(instance: fmi3Instance, valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
         counters: *const fmi3UInt64, resolutions: *const fmi3UInt64) " (no clocks)";
     /// Not supported (no event mode).
     fn fmi3EvaluateDiscreteStates(instance: fmi3Instance) " (no event mode)";
     /// Not supported (no event mode).
-    fn fmi3UpdateDiscreteStates(instance: fmi3Instance, discreteStatesNeedUpdate: *mut fmi3Boolean, terminateSimulation: *mut fmi3Boolean,
-        nominalsOfContinuousStatesChanged: *mut fmi3Boolean, valuesOfContinuousStatesChanged: *mut fmi3Boolean,
+    fn fmi3UpdateDiscreteStates(instance: fmi3Instance,
+        discreteStatesNeedUpdate: *mut fmi3Boolean, terminateSimulation: *mut fmi3Boolean,
+        nominalsOfContinuousStatesChanged: *mut fmi3Boolean,
+            valuesOfContinuousStatesChanged: *mut fmi3Boolean,
         nextEventTimeDefined: *mut fmi3Boolean, nextEventTime: *mut fmi3Float64) " (no event mode)";
     /// Model Exchange: not provided.
     fn fmi3EnterContinuousTimeMode(instance: fmi3Instance) " (Co-Simulation only)";
     /// Model Exchange: not provided.
-    fn fmi3CompletedIntegratorStep(instance: fmi3Instance, noSetFMUStatePriorToCurrentPoint: fmi3Boolean, enterEventMode: *mut fmi3Boolean,
+    fn fmi3CompletedIntegratorStep(instance: fmi3Instance,
+        noSetFMUStatePriorToCurrentPoint: fmi3Boolean, enterEventMode: *mut fmi3Boolean,
         terminateSimulation: *mut fmi3Boolean) " (Co-Simulation only)";
     /// Model Exchange: not provided.
     fn fmi3SetTime(instance: fmi3Instance, time: fmi3Float64) " (Co-Simulation only)";
     /// Model Exchange: not provided.
-    fn fmi3SetContinuousStates(instance: fmi3Instance, continuousStates: *const fmi3Float64, nContinuousStates: usize) " (Co-Simulation only)";
+    fn fmi3SetContinuousStates(instance: fmi3Instance, continuousStates: *const fmi3Float64,
+        nContinuousStates: usize) " (Co-Simulation only)";
     /// Model Exchange: not provided.
-    fn fmi3GetContinuousStateDerivatives(instance: fmi3Instance, derivatives: *mut fmi3Float64, nContinuousStates: usize) " (Co-Simulation only)";
+    fn fmi3GetContinuousStateDerivatives(instance: fmi3Instance, derivatives: *mut fmi3Float64,
+        nContinuousStates: usize) " (Co-Simulation only)";
     /// Model Exchange: not provided.
-    fn fmi3GetEventIndicators(instance: fmi3Instance, eventIndicators: *mut fmi3Float64, nEventIndicators: usize) " (Co-Simulation only)";
+    fn fmi3GetEventIndicators(instance: fmi3Instance, eventIndicators: *mut fmi3Float64,
+        nEventIndicators: usize) " (Co-Simulation only)";
     /// Model Exchange: not provided.
-    fn fmi3GetContinuousStates(instance: fmi3Instance, continuousStates: *mut fmi3Float64, nContinuousStates: usize) " (Co-Simulation only)";
+    fn fmi3GetContinuousStates(instance: fmi3Instance, continuousStates: *mut fmi3Float64,
+        nContinuousStates: usize) " (Co-Simulation only)";
     /// Model Exchange: not provided.
-    fn fmi3GetNominalsOfContinuousStates(instance: fmi3Instance, nominals: *mut fmi3Float64, nContinuousStates: usize) " (Co-Simulation only)";
+    fn fmi3GetNominalsOfContinuousStates(instance: fmi3Instance, nominals: *mut fmi3Float64,
+        nContinuousStates: usize) " (Co-Simulation only)";
     /// Model Exchange: not provided.
     fn fmi3GetNumberOfEventIndicators(instance: fmi3Instance, nEventIndicators: *mut usize) " (Co-Simulation only)";
     /// Model Exchange: not provided.
@@ -379,10 +402,12 @@ not_supported! {
     /// Not supported: without event mode the instance is in Step Mode after initialisation.
     fn fmi3EnterStepMode(instance: fmi3Instance) " (no event mode: the instance is in Step Mode after fmi3ExitInitializationMode)";
     /// Not supported (maxOutputDerivativeOrder = 0).
-    fn fmi3GetOutputDerivatives(instance: fmi3Instance, valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+    fn fmi3GetOutputDerivatives(instance: fmi3Instance,
+        valueReferences: *const fmi3ValueReference, nValueReferences: usize,
         orders: *const fmi3Int32, values: *mut fmi3Float64, nValues: usize) " (maxOutputDerivativeOrder = 0)";
     /// Scheduled Execution: not provided.
-    fn fmi3ActivateModelPartition(instance: fmi3Instance, clockReference: fmi3ValueReference, activationTime: fmi3Float64) " (Co-Simulation only)";
+    fn fmi3ActivateModelPartition(instance: fmi3Instance, clockReference: fmi3ValueReference,
+        activationTime: fmi3Float64) " (Co-Simulation only)";
 }
 
 // ---------------------------------------------------------------- stepping

@@ -62,11 +62,13 @@ macro_rules! fmu_state_functions {
         $crate::fmi_macros::fmi_functions! {
             /// Stores the instance's state (model, FMI mode, stop time) into `*state`: a new
             /// FMU state for NULL, else the given one is overwritten.
-            fn $get(instance: $ity, state: *mut $sty) GetFMUState => |inst| inst.get_fmu_state(state);
+            fn $get(instance: $ity,
+                state: *mut $sty) GetFMUState => |inst| inst.get_fmu_state(state);
             /// Restores an FMU state this instance made, FMI mode and stop time included.
             fn $set(instance: $ity, state: $sty) SetFMUState => |inst| inst.set_fmu_state(state);
             /// Frees `*state` and sets it to NULL (NULL is fine).
-            fn $free(instance: $ity, state: *mut $sty) StoredFMUState => |inst| inst.free_fmu_state(state);
+            fn $free(instance: $ity,
+                state: *mut $sty) StoredFMUState => |inst| inst.free_fmu_state(state);
             /// The size of the serialized FMU state.
             fn $size(instance: $ity, state: $sty, size: *mut usize)
                 StoredFMUState => |inst| inst.serialized_size(state, size);
@@ -75,7 +77,8 @@ macro_rules! fmu_state_functions {
                 StoredFMUState => |inst| inst.serialize(state, serializedState.cast(), size);
             /// A new (or the given) FMU state from bytes, checked: mode byte, stop time,
             /// model bytes, checksum.
-            fn $deserialize(instance: $ity, serializedState: *const $bty, size: usize, state: *mut $sty)
+            fn $deserialize(instance: $ity, serializedState: *const $bty, size: usize,
+                state: *mut $sty)
                 StoredFMUState => |inst| inst.deserialize(serializedState.cast(), size, state);
         }
     };
