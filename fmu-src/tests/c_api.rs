@@ -419,6 +419,17 @@ fn fmi2_fmu_state_round_trip() {
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
         assert!(s.is_null());
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK, "freeing NULL is fine");
+        // A stale copy of a freed state, or a state of another instance, is refused
+        // without being read (no double free, no use after free).
+        let mut stale = kept;
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut stale), ERROR, "double free");
+        assert_eq!(fmi2SetFMUstate(f.c, stale), ERROR, "use after free");
+        assert!(f.log.has(&["not one this instance made"]), "{}", f.log.dump());
+        let mut foreign: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2GetFMUstate(g.c, &mut foreign), OK);
+        assert_eq!(fmi2SetFMUstate(f.c, foreign), ERROR, "a state of instance g set in f");
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut foreign), ERROR, "freed through f");
+        assert_eq!(fmi2FreeFMUstate(g.c, &mut foreign), OK, "its own instance frees it");
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s2), OK);
         assert_eq!(fmi2FreeFMUstate(f.c, null_mut()), OK);
 
