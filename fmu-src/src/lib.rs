@@ -5,11 +5,14 @@
 //! * [`physics`]: plain-Rust model of driver, coil and Moog 30 valve, with its exact
 //!   piecewise-linear integrator. No FFI, no `unsafe`.
 //! * [`model`]: a model instance as the FMI layer sees it (values by reference, step, state bytes).
-//! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code).
+//! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code), generated alike over
+//!   [`fmi_common`]; [`fmi_state_machine`]: the call-sequence table and the Error rules.
 
 pub mod fmi2;
 pub mod fmi3;
 pub mod fmi_common;
+mod fmi_macros;
+pub mod fmi_state_machine;
 pub mod hydraulics;
 pub mod model;
 pub mod physics;

@@ -93,6 +93,18 @@ impl Model {
     /// Advances by `step` seconds from the current time. On error the instance keeps its
     /// state from before the call.
     pub fn do_step(&mut self, current_time: f64, step: f64) -> Result<StepEvents, String> {
+        self.check_step(current_time, step)?;
+        let events = self.physics.advance(&self.values, self.time, step)?;
+        self.physics.write_outputs(&mut self.values);
+        self.time = current_time + step;
+        Ok(events)
+    }
+
+    /// Refuses, without touching the model, a step no importer should ask for: before
+    /// initialisation, a step size that is not positive and finite, a communication point
+    /// away from the FMU time, a step too small to advance it. An error of
+    /// [`Model::do_step`] after this passed is a failure of the computation.
+    pub fn check_step(&self, current_time: f64, step: f64) -> Result<(), String> {
         if !self.initialized {
             return Err("doStep before initialisation ended".into());
         }
@@ -102,17 +114,21 @@ impl Model {
         if !current_time.is_finite() {
             return Err(format!("currentCommunicationPoint {current_time} is not finite"));
         }
-        let tolerance = 1e-9 * self.time.abs().max(step).max(1e-9);
+        let tolerance = communication_point_tolerance(self.time, step);
         if (current_time - self.time).abs() > tolerance {
             return Err(format!(
-                "currentCommunicationPoint {current_time} does not match the FMU time {}",
+                "currentCommunicationPoint {current_time} does not match the FMU time {} \
+                 (tolerance {tolerance:e} s)",
                 self.time
             ));
         }
-        let events = self.physics.advance(&self.values, self.time, step)?;
-        self.physics.write_outputs(&mut self.values);
-        self.time = current_time + step;
-        Ok(events)
+        if current_time + step <= self.time {
+            return Err(format!(
+                "a step of {step} s from {current_time} does not advance the FMU time {}",
+                self.time
+            ));
+        }
+        Ok(())
     }
 
     /// Versioned, self-checking byte form of the whole instance (no pointers).
@@ -125,12 +141,12 @@ impl Model {
             body.extend_from_slice(&v.to_le_bytes());
         }
         self.physics.write_bytes(&mut body);
-        crate::model::frame(&body)
+        frame(MAGIC, &body)
     }
 
     /// Inverse of [`Model::to_bytes`]; refuses truncated, corrupted or foreign bytes.
     pub fn from_bytes(bytes: &[u8]) -> Result<Model, String> {
-        let body = unframe(bytes)?;
+        let body = unframe(MAGIC, bytes)?;
         let mut r = Reader { bytes: body, at: 0 };
         let n = r.u32()? as usize;
         if n != N_VARIABLES {
@@ -150,24 +166,35 @@ impl Model {
     }
 }
 
+/// How far an importer's communication point may be from the FMU time: the rounding of
+/// its own `t + h` sums (4 ulps of t) plus a millionth of the step, so never more than a
+/// small fraction of the step however large t is (an epoch start time of 1.7e9 s has
+/// ulps of 0.24 us).
+pub fn communication_point_tolerance(time: f64, step: f64) -> f64 {
+    let abs = time.abs();
+    let ulp = f64::from_bits(abs.to_bits() + 1) - abs;
+    4.0 * ulp + 1e-6 * step
+}
+
 const MAGIC: &[u8; 8] = b"EHSVST01";
 
 fn checksum(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))
 }
 
-/// magic | body length (u64) | body | FNV-1a 64 of body
-pub(crate) fn frame(body: &[u8]) -> Vec<u8> {
+/// magic | body length (u64) | body | FNV-1a 64 of body. The magic names the format
+/// and its version (the model's bytes, the FMI layer's FMU state around them).
+pub(crate) fn frame(magic: &[u8; 8], body: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(body.len() + 24);
-    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(magic);
     out.extend_from_slice(&(body.len() as u64).to_le_bytes());
     out.extend_from_slice(body);
     out.extend_from_slice(&checksum(body).to_le_bytes());
     out
 }
 
-fn unframe(bytes: &[u8]) -> Result<&[u8], String> {
-    if bytes.len() < 24 || &bytes[..8] != MAGIC {
+pub(crate) fn unframe<'a>(magic: &[u8; 8], bytes: &'a [u8]) -> Result<&'a [u8], String> {
+    if bytes.len() < 24 || &bytes[..8] != magic {
         return Err("not an EhsvActuator state (wrong magic or version)".into());
     }
     let len = u64::from_le_bytes(bytes[8..16].try_into().unwrap());
