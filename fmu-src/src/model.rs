@@ -370,3 +370,53 @@ impl Reader<'_> {
         Ok(f64::from_le_bytes(self.take(8)?.try_into().unwrap()))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn params_are_checked_against_the_table_and_name_the_variable() {
+        let mut values = start_values();
+        values[vr::CYLINDER_MASS] = 0.0;
+        assert!(params(&values).unwrap_err().contains("cylinder.mass"));
+        values[vr::CYLINDER_MASS] = 5.0;
+        values[vr::CYLINDER_BETA] = f64::NAN;
+        assert!(params(&values).unwrap_err().contains("cylinder.beta"));
+        values[vr::CYLINDER_BETA] = 1e9;
+        values[vr::CYLINDER_ROD] = 0.02;
+        assert!(Physics::start(&params(&values).unwrap(), &inputs(&values), 0.0)
+            .err()
+            .unwrap()
+            .contains("cylinder.rod"));
+    }
+
+    #[test]
+    fn typed_params_mirror_the_value_array() {
+        let mut values = start_values();
+        values[vr::DRIVER] = 3.0;
+        values[vr::INDUSTRIAL_KP] = 1234.0;
+        values[vr::POSITION_KD] = 0.5;
+        values[vr::VALVE_DP_LAMINAR] = 2e5;
+        let p = params(&values).unwrap();
+        assert_eq!(p.driver, DriverKind::Industrial);
+        assert_eq!(p.industrial.kp, 1234.0);
+        assert_eq!(p.outer_loop.position, [1.0, 0.0, 0.5]);
+        assert_eq!(p.valve.dp_laminar, 2e5);
+        assert_eq!(p.coil.inductance, 3.2);
+    }
+
+    #[test]
+    fn outputs_before_initialisation_follow_the_last_set() {
+        let mut m = Model::new();
+        assert_eq!(m.get(vr::I_COIL), Some(0.0));
+        m.set(vr::I_REF, 0.005).unwrap();
+        m.set(vr::I_REF, 0.01).unwrap();
+        assert_eq!(m.get(vr::I_COIL), Some(0.01));
+        assert!(m.get(vr::Q_VALVE).unwrap() > 0.0);
+        // Parameters that do not fit together keep the last consistent outputs.
+        m.set(vr::CYLINDER_ROD, 0.02).unwrap();
+        assert_eq!(m.get(vr::I_COIL), Some(0.01));
+        assert!(m.initialize().unwrap_err().contains("cylinder.rod"));
+    }
+}

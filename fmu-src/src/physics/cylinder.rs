@@ -39,56 +39,56 @@
 //!
 
 use super::params::{CylinderTableParams, ValveParams};
-use super::valve::{port_flows, regularised_sqrt, regularised_sqrt_slope};
+use super::valve::port_flows;
 
 /// Number of states: `[p_A, p_B, x, v]`.
 pub(crate) const N_STATES: usize = 4;
 pub(crate) const PA: usize = 0;
 pub(crate) const PB: usize = 1;
-const X: usize = 2;
-const V: usize = 3;
+pub(crate) const X: usize = 2;
+pub(crate) const V: usize = 3;
 
 pub(crate) type Vec4 = [f64; N_STATES];
 pub(crate) type Mat4 = [[f64; N_STATES]; N_STATES];
 
 /// Physical parameters of valve ports, cylinder and load, in SI (pressures gauge).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CylinderParams {
-    /// Piston (bore) diameter [m].
+pub(crate) struct CylinderParams {
+    /// Piston (bore) diameter (m).
     pub bore: f64,
-    /// Rod diameter [m]; the rod is on the B side.
+    /// Rod diameter (m); the rod is on the B side.
     pub rod: f64,
-    /// Full stroke [m]; x runs from -stroke/2 to +stroke/2.
+    /// Full stroke (m); x runs from -stroke/2 to +stroke/2.
     pub stroke: f64,
-    /// Moving mass: piston, rod and load [kg].
+    /// Moving mass: piston, rod and load (kg).
     pub mass: f64,
-    /// Effective bulk modulus of oil, hoses and walls [Pa].
+    /// Effective bulk modulus of oil, hoses and walls (Pa).
     pub beta: f64,
-    /// Dead volume per chamber at its end of stroke [m3].
+    /// Dead volume per chamber at its end of stroke (m3).
     pub v_dead: f64,
     pub b_viscous: f64,
     pub f_coulomb: f64,
-    /// Breakaway force (peak of the Stribeck curve) [N].
+    /// Breakaway force (peak of the Stribeck curve) (N).
     pub f_static: f64,
     pub v_stribeck: f64,
-    /// Velocity scale of the tanh that replaces sign(v) in the Coulomb/Stribeck term [m/s].
+    /// Velocity scale of the tanh that replaces sign(v) in the Coulomb/Stribeck term (m/s).
     pub v_friction_smooth: f64,
     pub k_endstop: f64,
     pub c_endstop: f64,
-    /// Internal (cross-piston) leakage A -> B per pressure difference [m3/(s.Pa)].
+    /// Internal (cross-piston) leakage A -> B per pressure difference (m3/(s.Pa)).
     pub c_leak: f64,
-    /// External leakage from each chamber to the drain (at p_tank) [m3/(s.Pa)].
+    /// External leakage from each chamber to the drain (at p_tank) (m3/(s.Pa)).
     pub c_leak_external: f64,
-    /// Spool/bushing flow gain K3 (the same value as the valve's `valve.K3`) [m2/s].
+    /// Spool/bushing flow gain K3 (the same value as the valve's `valve.K3`) (m2/s).
     pub k3: f64,
-    /// Total rated valve pressure drop at which the no-load flow is K3*x_s [Pa].
+    /// Total rated valve pressure drop at which the no-load flow is K3*x_s (Pa).
     pub dp_rated: f64,
-    /// Port pressure drop below which the orifice law turns laminar (regularisation) [Pa].
+    /// Port pressure drop below which the orifice law turns laminar (regularisation) (Pa).
     pub dp_laminar: f64,
     pub p_tank: f64,
-    /// Lowest chamber pressure (gauge) [Pa].
+    /// Lowest chamber pressure (gauge) (Pa).
     pub p_cavitation: f64,
-    /// Band above the floor over which an emptying chamber's bulk modulus fades out [Pa].
+    /// Band above the floor over which an emptying chamber's bulk modulus fades out (Pa).
     pub dp_cavitation_band: f64,
 }
 
@@ -157,26 +157,26 @@ impl CylinderParams {
         Ok(())
     }
 
-    /// Piston area on the A (cap) side [m2].
-    pub fn area_a(&self) -> f64 {
+    /// Piston area on the A (cap) side (m2).
+    pub(crate) fn area_a(&self) -> f64 {
         std::f64::consts::FRAC_PI_4 * self.bore * self.bore
     }
 
-    /// Annulus area on the B (rod) side [m2].
-    pub fn area_b(&self) -> f64 {
+    /// Annulus area on the B (rod) side (m2).
+    pub(crate) fn area_b(&self) -> f64 {
         self.area_a() - std::f64::consts::FRAC_PI_4 * self.rod * self.rod
     }
 
     #[cfg(test)]
-    /// Extension stall force p_S*A_A (B at tank) [N].
-    pub fn stall_force(&self, p_supply: f64) -> f64 {
+    /// Extension stall force p_S*A_A (B at tank) (N).
+    pub(crate) fn stall_force(&self, p_supply: f64) -> f64 {
         (p_supply - self.p_tank) * self.area_a()
     }
 }
 
-/// Chamber pressures [Pa, gauge], piston position [m] and velocity [m/s].
+/// Chamber pressures (Pa, gauge), piston position (m) and velocity (m/s).
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
-pub struct CylinderState {
+pub(crate) struct CylinderState {
     pub p_a: f64,
     pub p_b: f64,
     pub x: f64,
@@ -184,26 +184,26 @@ pub struct CylinderState {
 }
 
 impl CylinderState {
-    pub fn to_array(&self) -> [f64; N_STATES] {
+    pub(crate) fn to_array(self) -> [f64; N_STATES] {
         [self.p_a, self.p_b, self.x, self.v]
     }
-    pub fn from_array(y: &[f64; N_STATES]) -> CylinderState {
+    pub(crate) fn from_array(y: &[f64; N_STATES]) -> CylinderState {
         CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] }
     }
 }
 
 /// Outputs of the hydraulic side.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CylinderOutputs {
-    /// Flow into chamber A [m3/s].
+pub(crate) struct CylinderOutputs {
+    /// Flow into chamber A (m3/s).
     pub q_a: f64,
-    /// Flow out of chamber B [m3/s].
+    /// Flow out of chamber B (m3/s).
     pub q_b: f64,
     pub p_a: f64,
     pub p_b: f64,
     pub x_piston: f64,
     pub v_piston: f64,
-    /// p_A*A_A - p_B*A_B [N].
+    /// p_A*A_A - p_B*A_B (N).
     pub f_hydraulic: f64,
 }
 
@@ -213,7 +213,7 @@ pub struct CylinderOutputs {
 /// `p_A + p_B = p_S` with the tank at 0), together with `p_A A_A - p_B A_B + F_ext = 0`.
 /// For F_ext = 0: `p_A = (p_S + p_T) A_B/(A_A + A_B)`. Loads the valve cannot hold with both
 /// pressures in `[p_T, p_S]` are clamped there (then the force balance is not met).
-pub fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) -> CylinderState {
+pub(crate) fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) -> CylinderState {
     let (area_a, area_b) = (params.area_a(), params.area_b());
     let sum = p_supply + params.p_tank;
     let (lo, hi) = (params.p_tank.min(p_supply), params.p_tank.max(p_supply));
@@ -221,14 +221,14 @@ pub fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) -> Cylind
     let p_b = ((p_a * area_a + f_ext) / area_b).clamp(lo, hi);
     CylinderState { p_a, p_b, x: 0.0, v: 0.0 }
 }
-/// Friction force opposing motion, viscous part included [N].
+/// Friction force opposing motion, viscous part included (N).
 fn friction(params: &CylinderParams, v: f64) -> f64 {
     let stribeck = (v / params.v_stribeck).powi(2);
     let dry = params.f_coulomb + (params.f_static - params.f_coulomb) * (-stribeck).exp();
     dry * (v / params.v_friction_smooth).tanh() + params.b_viscous * v
 }
 
-/// End-stop contact force on the piston, positive towards +x [N]. Never pulls.
+/// End-stop contact force on the piston, positive towards +x (N). Never pulls.
 fn endstop_force(params: &CylinderParams, x: f64, v: f64) -> f64 {
     let half = 0.5 * params.stroke;
     let beyond_top = x - half;
@@ -254,10 +254,10 @@ fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64) -> f64 {
 
 /// Chamber volumes never shrink below this fraction of the dead volume (only reachable with
 /// absurd end-stop penetration; keeps the pressure equations finite).
-const MIN_VOLUME_FRACTION: f64 = 1e-3;
+pub(crate) const MIN_VOLUME_FRACTION: f64 = 1e-3;
 
 /// `[p_A', p_B', x', v']` for spool position `x_s`.
-pub fn derivatives(
+pub(crate) fn derivatives(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,
@@ -282,134 +282,8 @@ pub fn derivatives(
         + endstop_force(params, state.x, state.v);
     [dp_a, dp_b, state.v, force / params.mass]
 }
-/// The model linearised at a state: `f` exactly as [`derivatives`] computes it, the analytic
-/// Jacobian `df/dy` and the sensitivity `df/dx_s` (the only time dependence: `df/dt = df/dx_s
-/// x_s'`). At a kink of a piecewise law (a clamp, the branch of a `max`) the derivative is
-/// taken on the side the state is on, ties broken towards increasing argument (as a forward
-/// difference would see it), except at the contact switching surfaces of the end stop where it
-/// is the side the state is on (no contact at exactly zero penetration or zero contact force).
-#[allow(clippy::needless_range_loop)]
-pub(crate) fn linearise(
-    params: &CylinderParams,
-    y: &Vec4,
-    x_s: f64,
-    p_supply: f64,
-    f_ext: f64,
-) -> (Vec4, Mat4, Vec4) {
-    let (p_a_raw, p_b_raw, x, v) = (y[PA], y[PB], y[X], y[V]);
-    let (area_a, area_b) = (params.area_a(), params.area_b());
-    let half = 0.5 * params.stroke;
-    let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
-    let volume_a_free = params.v_dead + area_a * (x + half);
-    let volume_b_free = params.v_dead + area_b * (half - x);
-    let (volume_a, dva_dx) =
-        if volume_a_free >= min_volume { (volume_a_free, area_a) } else { (min_volume, 0.0) };
-    let (volume_b, dvb_dx) =
-        if volume_b_free >= min_volume { (volume_b_free, -area_b) } else { (min_volume, 0.0) };
-    // Port flows, as `port_flows`, with their slopes in the chamber pressures and in x_s.
-    let p_a = p_a_raw.max(params.p_cavitation);
-    let p_b = p_b_raw.max(params.p_cavitation);
-    let clamp_a = if p_a_raw >= params.p_cavitation { 1.0 } else { 0.0 };
-    let clamp_b = if p_b_raw >= params.p_cavitation { 1.0 } else { 0.0 };
-    let gain_per_xs = params.k3 / (0.5 * params.dp_rated).sqrt();
-    let gain = params.k3 * x_s / (0.5 * params.dp_rated).sqrt();
-    let lam = params.dp_laminar;
-    let (r_a, dra_dpa, r_b, drb_dpb) = if x_s >= 0.0 {
-        let (da, db) = (p_supply - p_a, p_b - params.p_tank);
-        (
-            regularised_sqrt(da, lam),
-            -regularised_sqrt_slope(da, lam),
-            regularised_sqrt(db, lam),
-            regularised_sqrt_slope(db, lam),
-        )
-    } else {
-        let (da, db) = (p_a - params.p_tank, p_supply - p_b);
-        (
-            regularised_sqrt(da, lam),
-            regularised_sqrt_slope(da, lam),
-            regularised_sqrt(db, lam),
-            -regularised_sqrt_slope(db, lam),
-        )
-    };
-    let (q_a, q_b) = (gain * r_a, gain * r_b);
-    let (dqa_dpa, dqb_dpb) = (gain * dra_dpa * clamp_a, gain * drb_dpb * clamp_b);
-    let (dqa_dxs, dqb_dxs) = (gain_per_xs * r_a, gain_per_xs * r_b);
-    let q_internal = params.c_leak * (p_a_raw - p_b_raw);
-    let q_external_a = params.c_leak_external * (p_a_raw - params.p_tank);
-    let q_external_b = params.c_leak_external * (p_b_raw - params.p_tank);
-    let inflow_a = q_a - area_a * v - q_internal - q_external_a;
-    let inflow_b = -q_b + area_b * v + q_internal - q_external_b;
-    // Cavitation factors and their slopes in the chamber's own pressure.
-    let factor = |p: f64, inflow: f64| -> (f64, f64) {
-        if inflow >= 0.0 {
-            return (1.0, 0.0);
-        }
-        let band = params.dp_cavitation_band;
-        let u_raw = (p - params.p_cavitation) / band;
-        let u = u_raw.clamp(0.0, 1.0);
-        let slope = if (0.0..1.0).contains(&u_raw) { (2.0 - 2.0 * u) / band } else { 0.0 };
-        (u * (2.0 - u), slope)
-    };
-    let (cf_a, dcfa_dpa) = factor(p_a_raw, inflow_a);
-    let (cf_b, dcfb_dpb) = factor(p_b_raw, inflow_b);
-    let (stiff_a, stiff_b) = (params.beta / volume_a, params.beta / volume_b);
-    let dp_a = stiff_a * inflow_a * cf_a;
-    let dp_b = stiff_b * inflow_b * cf_b;
-    // Mechanics.
-    let stribeck = (v / params.v_stribeck).powi(2);
-    let decay = (-stribeck).exp();
-    let dry = params.f_coulomb + (params.f_static - params.f_coulomb) * decay;
-    let ddry_dv = (params.f_static - params.f_coulomb)
-        * decay
-        * (-2.0 * v / (params.v_stribeck * params.v_stribeck));
-    let th = (v / params.v_friction_smooth).tanh();
-    let friction = dry * th + params.b_viscous * v;
-    let dfriction_dv =
-        ddry_dv * th + dry * (1.0 - th * th) / params.v_friction_smooth + params.b_viscous;
-    let (beyond_top, beyond_bottom) = (x - half, -half - x);
-    let (contact, dcontact_dx, dcontact_dv) = if beyond_top > 0.0 {
-        let s = params.k_endstop * beyond_top + params.c_endstop * v;
-        if s > 0.0 {
-            (-s, -params.k_endstop, -params.c_endstop)
-        } else {
-            (0.0, 0.0, 0.0)
-        }
-    } else if beyond_bottom > 0.0 {
-        let s = params.k_endstop * beyond_bottom - params.c_endstop * v;
-        if s > 0.0 {
-            (s, -params.k_endstop, -params.c_endstop)
-        } else {
-            (0.0, 0.0, 0.0)
-        }
-    } else {
-        (0.0, 0.0, 0.0)
-    };
-    let force = p_a_raw * area_a - p_b_raw * area_b - friction + f_ext + contact;
-    let f = [dp_a, dp_b, v, force / params.mass];
-
-    let mut jac: Mat4 = [[0.0; N_STATES]; N_STATES];
-    let (c_leak, c_ext) = (params.c_leak, params.c_leak_external);
-    // d inflow_a / d(p_a, p_b, x, v) = (dqa_dpa - c_leak - c_ext, c_leak, 0, -A_A)
-    jac[PA][PA] = stiff_a * (cf_a * (dqa_dpa - c_leak - c_ext) + inflow_a * dcfa_dpa);
-    jac[PA][PB] = stiff_a * cf_a * c_leak;
-    jac[PA][X] = -stiff_a / volume_a * dva_dx * inflow_a * cf_a;
-    jac[PA][V] = -stiff_a * cf_a * area_a;
-    // d inflow_b / d(p_a, p_b, x, v) = (c_leak, -dqb_dpb - c_leak - c_ext, 0, A_B)
-    jac[PB][PA] = stiff_b * cf_b * c_leak;
-    jac[PB][PB] = stiff_b * (cf_b * (-dqb_dpb - c_leak - c_ext) + inflow_b * dcfb_dpb);
-    jac[PB][X] = -stiff_b / volume_b * dvb_dx * inflow_b * cf_b;
-    jac[PB][V] = stiff_b * cf_b * area_b;
-    jac[X][V] = 1.0;
-    jac[V][PA] = area_a / params.mass;
-    jac[V][PB] = -area_b / params.mass;
-    jac[V][X] = dcontact_dx / params.mass;
-    jac[V][V] = (dcontact_dv - dfriction_dv) / params.mass;
-    let f_xs = [stiff_a * cf_a * dqa_dxs, -stiff_b * cf_b * dqb_dxs, 0.0, 0.0];
-    (f, jac, f_xs)
-}
-
 /// All outputs at a state.
-pub fn outputs(
+pub(crate) fn outputs(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,

@@ -29,11 +29,11 @@ impl HBridgeParams {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Digital {
     active: bool,
-    /// PI integrator [V].
+    /// PI integrator (V).
     integral: f64,
-    /// Command computed at the last sample, in force from the next one [V].
+    /// Command computed at the last sample, in force from the next one (V).
     pending: f64,
-    /// Command in force (latched by the next PWM period) [V].
+    /// Command in force (latched by the next PWM period) (V).
     applied: f64,
     next_sample: i64,
     next_period: i64,

@@ -39,7 +39,7 @@ pub(crate) struct OuterLoop {
     active: bool,
     integral: f64,
     previous_error: f64,
-    /// Current command in force [A].
+    /// Current command in force (A).
     pub(crate) command: f64,
     next_sample: i64,
 }

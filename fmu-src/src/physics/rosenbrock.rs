@@ -19,12 +19,13 @@
 //! the same tolerance. Steps are cut to land on the end-stop contact switches (x reaching
 //! `+-S/2`, the contact force crossing zero), predicted from the Taylor polynomial that the
 //! linearisation gives, instead of rejecting their way across the jump in `v'`.
-//! Everything lives on the stack: no allocation in [`advance`].
+//! Everything lives on the stack: no allocation in [`advance_with_rate`].
 
 use super::cylinder::{
-    derivatives, linearise, next_contact_switch, CylinderParams, CylinderState, Mat4, Vec4,
-    N_STATES, PA, PB,
+    derivatives, next_contact_switch, CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB,
 };
+use super::cylinder_jacobian::linearise;
+use super::lu4::Lu4;
 
 /// A Rosenbrock method in the transformed form of Hairer & Wanner and of KPP (Sandu et al.):
 /// `(I/(h gamma) - J) k_i = f(t + c_i h, y + sum_j a_ij k_j) + sum_j (c_ij/h) k_j + h d_i f_t`,
@@ -98,20 +99,20 @@ const RODAS3: Rosenbrock<4> = Rosenbrock {
 const SAFETY: f64 = 0.9;
 const MIN_FACTOR: f64 = 0.2;
 const MAX_FACTOR: f64 = 6.0;
-/// First step when nothing is known yet [s].
+/// First step when nothing is known yet (s).
 const INITIAL_STEP: f64 = 1e-6;
 /// Refuse a call that needs more internal steps than this (rejected ones included).
 const MAX_STEPS_PER_CALL: u32 = 100_000;
 
 /// Error weights: the error of state i is measured against `rtol * max(|y_i|, STATE_SCALE[i])`.
-pub const STATE_SCALE: [f64; N_STATES] = [1.0e6, 1.0e6, 1.0e-2, 1.0e-1];
+pub(crate) const STATE_SCALE: [f64; N_STATES] = [1.0e6, 1.0e6, 1.0e-2, 1.0e-1];
 
 /// What the integrator carries from one call to the next.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IntegratorMemory {
+pub(crate) struct IntegratorMemory {
     /// Relative tolerance on the scaled states.
     pub rtol: f64,
-    /// Step size to try next [s]; 0 = not known yet.
+    /// Step size to try next (s); 0 = not known yet.
     pub h_next: f64,
     /// Last accepted step and its error, for Gustafsson's predictive controller.
     h_accepted: f64,
@@ -125,21 +126,21 @@ impl Default for IntegratorMemory {
 }
 
 impl IntegratorMemory {
-    pub fn new(rtol: f64) -> IntegratorMemory {
+    pub(crate) fn new(rtol: f64) -> IntegratorMemory {
         IntegratorMemory { rtol, h_next: 0.0, h_accepted: 0.0, err_accepted: 1.0 }
     }
     /// `[rtol, h_next, h_accepted, err_accepted]`, for serialising the instance state.
-    pub fn to_array(&self) -> [f64; 4] {
+    pub(crate) fn to_array(self) -> [f64; 4] {
         [self.rtol, self.h_next, self.h_accepted, self.err_accepted]
     }
-    pub fn from_array(a: &[f64; 4]) -> IntegratorMemory {
+    pub(crate) fn from_array(a: &[f64; 4]) -> IntegratorMemory {
         IntegratorMemory { rtol: a[0], h_next: a[1], h_accepted: a[2], err_accepted: a[3] }
     }
 }
 
-/// Work done in one call of [`advance`].
+/// Work done in one call of [`advance_with_rate`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Stats {
+pub(crate) struct Stats {
     pub accepted: u32,
     pub rejected: u32,
     /// Model evaluations (an analytic linearisation counts as one, and in `jacobian_evaluations`).
@@ -151,51 +152,8 @@ pub struct Stats {
     pub cheap_failed: u32,
     /// Accepted steps cut short to land on an end-stop contact switch (included in `accepted`).
     pub landings: u32,
-    /// Largest amount a pressure was lifted back to the cavitation floor after a step [Pa].
+    /// Largest amount a pressure was lifted back to the cavitation floor after a step (Pa).
     pub floor_clamp: f64,
-}
-
-/// The spool path over one call: the quintic Hermite interpolant through position, rate
-/// and acceleration at both ends of `[0, h]` (the physics core knows them exactly).
-#[derive(Clone, Copy, Debug)]
-pub struct SpoolPath {
-    pub h: f64,
-    pub start: [f64; 3],
-    pub end: [f64; 3],
-}
-
-impl SpoolPath {
-    pub fn position(&self, tau: f64) -> f64 {
-        let (h, a, b) = (self.h, &self.start, &self.end);
-        let s = tau / h;
-        let (s2, s3) = (s * s, s * s * s);
-        let (s4, s5) = (s3 * s, s3 * s2);
-        let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
-        let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
-        let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
-        let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
-        let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
-        let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
-        a[0] * h00
-            + h * a[1] * h10
-            + h * h * a[2] * h20
-            + b[0] * h01
-            + h * b[1] * h11
-            + h * h * b[2] * h21
-    }
-
-    /// d/dtau of [`SpoolPath::position`].
-    pub fn rate(&self, tau: f64) -> f64 {
-        let (h, a, b) = (self.h, &self.start, &self.end);
-        let s = tau / h;
-        let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
-        let d00 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4;
-        let d10 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
-        let d20 = s - 4.5 * s2 + 6.0 * s3 - 2.5 * s4;
-        let d11 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
-        let d21 = 1.5 * s2 - 4.0 * s3 + 2.5 * s4;
-        (a[0] - b[0]) * d00 / h + a[1] * d10 + h * a[2] * d20 + b[1] * d11 + h * b[2] * d21
-    }
 }
 
 /// Advances the state by `h` seconds; `x_s(tau)` is the spool position at `tau` in `[0, h]`.
@@ -204,7 +162,7 @@ impl SpoolPath {
 /// for arbitrary spool paths. On error the state is left as it was.
 #[cfg(test)]
 #[allow(clippy::too_many_arguments)]
-pub fn advance(
+pub(crate) fn advance(
     params: &CylinderParams,
     state: &mut CylinderState,
     h: f64,
@@ -230,9 +188,9 @@ pub fn advance(
     advance_with_rate(params, state, h, p_supply, f_ext, spool, work)
 }
 
-/// As [`advance`], with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`.
+/// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`.
 #[allow(clippy::too_many_arguments)]
-pub fn advance_with_rate(
+pub(crate) fn advance_with_rate(
     params: &CylinderParams,
     state: &mut CylinderState,
     h: f64,
@@ -469,58 +427,6 @@ fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
     let err = (sum / N_STATES as f64).sqrt();
     // A non-finite stage is an error estimate of infinity: the step is rejected and shrunk.
     Ok((y_new, if err.is_finite() { err } else { f64::INFINITY }))
-}
-
-/// LU factors of a 4x4 matrix with partial pivoting.
-struct Lu4 {
-    lu: Mat4,
-    pivot: [usize; N_STATES],
-}
-
-impl Lu4 {
-    fn factor(mut a: Mat4) -> Option<Lu4> {
-        let mut pivot = [0; N_STATES];
-        for col in 0..N_STATES {
-            let mut best = col;
-            for row in col + 1..N_STATES {
-                if a[row][col].abs() > a[best][col].abs() {
-                    best = row;
-                }
-            }
-            if a[best][col] == 0.0 || !a[best][col].is_finite() {
-                return None;
-            }
-            a.swap(col, best);
-            pivot[col] = best;
-            let pivot_row = a[col];
-            for row in a.iter_mut().skip(col + 1) {
-                let m = row[col] / pivot_row[col];
-                row[col] = m;
-                for (value, above) in row.iter_mut().zip(pivot_row.iter()).skip(col + 1) {
-                    *value -= m * above;
-                }
-            }
-        }
-        Some(Lu4 { lu: a, pivot })
-    }
-
-    fn solve(&self, mut b: Vec4) -> Vec4 {
-        for col in 0..N_STATES {
-            b.swap(col, self.pivot[col]);
-        }
-        for row in 1..N_STATES {
-            for c in 0..row {
-                b[row] -= self.lu[row][c] * b[c];
-            }
-        }
-        for row in (0..N_STATES).rev() {
-            for c in row + 1..N_STATES {
-                b[row] -= self.lu[row][c] * b[c];
-            }
-            b[row] /= self.lu[row][row];
-        }
-        b
-    }
 }
 
 #[cfg(test)]

@@ -1,4 +1,3 @@
-
 use super::*;
 use crate::physics::cylinder::{equilibrium, CylinderState};
 
@@ -88,22 +87,6 @@ fn restored_state_and_memory_repeat_the_run_bit_for_bit() {
     let before = s;
     assert!(advance(&p, &mut s, f64::NAN, P_RATED, 0.0, |_| 0.0, &mut work).is_err());
     assert_eq!(s, before);
-}
-
-#[test]
-fn spool_path_rate_is_the_derivative_of_its_position() {
-    let path = SpoolPath { h: 1e-4, start: [1.0e-4, 0.3, -2.0e3], end: [1.3e-4, 0.1, 5.0e3] };
-    for tau in [0.0, 0.1, 0.5, 0.77, 1.0].map(|s| s * path.h) {
-        let d = 1e-6 * path.h;
-        let fd = (path.position(tau + d) - path.position(tau - d)) / (2.0 * d);
-        assert!((path.rate(tau) - fd).abs() < 1e-8 * 0.3, "tau {tau}: {} vs {fd}", path.rate(tau));
-    }
-    assert!(
-        (path.position(0.0) - path.start[0]).abs() < 1e-18
-            && (path.position(path.h) - path.end[0]).abs() < 1e-18
-    );
-    assert!((path.rate(0.0) - path.start[1]).abs() < 1e-15);
-    assert!((path.rate(path.h) - path.end[1]).abs() < 1e-14);
 }
 
 /// Every 0.1 ms call at the default tolerance (Rodas3 where it passes, located contact

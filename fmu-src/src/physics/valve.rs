@@ -173,7 +173,7 @@ pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
     }
 }
 
-/// Actual port flows `(Q_A into A, Q_B out of B)` [m3/s] for spool position `x_s`.
+/// Actual port flows `(Q_A into A, Q_B out of B)` (m3/s) for spool position `x_s`.
 pub(crate) fn port_flows(
     params: &CylinderParams,
     state: &CylinderState,
@@ -207,6 +207,49 @@ pub(crate) fn regularised_sqrt_slope(dp: f64, dp_lam: f64) -> f64 {
     } else {
         let s = dp / dp_lam;
         (1.25 - 0.75 * s * s) / dp_lam.sqrt()
+    }
+}
+
+/// The spool path over one call: the quintic Hermite interpolant through position, rate
+/// and acceleration at both ends of `[0, h]` (the physics core knows them exactly).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SpoolPath {
+    pub h: f64,
+    pub start: [f64; 3],
+    pub end: [f64; 3],
+}
+
+impl SpoolPath {
+    pub(crate) fn position(&self, tau: f64) -> f64 {
+        let (h, a, b) = (self.h, &self.start, &self.end);
+        let s = tau / h;
+        let (s2, s3) = (s * s, s * s * s);
+        let (s4, s5) = (s3 * s, s3 * s2);
+        let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
+        let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
+        let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
+        let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
+        let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
+        let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
+        a[0] * h00
+            + h * a[1] * h10
+            + h * h * a[2] * h20
+            + b[0] * h01
+            + h * b[1] * h11
+            + h * h * b[2] * h21
+    }
+
+    /// d/dtau of [`SpoolPath::position`].
+    pub(crate) fn rate(&self, tau: f64) -> f64 {
+        let (h, a, b) = (self.h, &self.start, &self.end);
+        let s = tau / h;
+        let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
+        let d00 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4;
+        let d10 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
+        let d20 = s - 4.5 * s2 + 6.0 * s3 - 2.5 * s4;
+        let d11 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
+        let d21 = 1.5 * s2 - 4.0 * s3 + 2.5 * s4;
+        (a[0] - b[0]) * d00 / h + a[1] * d10 + h * a[2] * d20 + b[1] * d11 + h * b[2] * d21
     }
 }
 
@@ -245,5 +288,25 @@ mod tests {
         assert_eq!(port_flows(&p, &balanced, 0.0, P_RATED), (0.0, 0.0));
         let over = CylinderState { p_a: 1.2 * P_RATED, ..balanced };
         assert!(port_flows(&p, &over, 1e-4, P_RATED).0 < 0.0);
+    }
+
+    #[test]
+    fn spool_path_rate_is_the_derivative_of_its_position() {
+        let path = SpoolPath { h: 1e-4, start: [1.0e-4, 0.3, -2.0e3], end: [1.3e-4, 0.1, 5.0e3] };
+        for tau in [0.0, 0.1, 0.5, 0.77, 1.0].map(|s| s * path.h) {
+            let d = 1e-6 * path.h;
+            let fd = (path.position(tau + d) - path.position(tau - d)) / (2.0 * d);
+            assert!(
+                (path.rate(tau) - fd).abs() < 1e-8 * 0.3,
+                "tau {tau}: {} vs {fd}",
+                path.rate(tau)
+            );
+        }
+        assert!(
+            (path.position(0.0) - path.start[0]).abs() < 1e-18
+                && (path.position(path.h) - path.end[0]).abs() < 1e-18
+        );
+        assert!((path.rate(0.0) - path.start[1]).abs() < 1e-15);
+        assert!((path.rate(path.h) - path.end[1]).abs() < 1e-14);
     }
 }
