@@ -8,7 +8,7 @@
 use std::cell::RefCell;
 
 use crate::physics::{
-    CoilParams, ControlMode, CylinderTableParams, DriverKind, HBridgeParams, Inputs,
+    CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
     OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams,
 };
 use crate::variables::{start_values, vr, Causality, N_VARIABLES, VARIABLES};
@@ -282,7 +282,7 @@ pub(crate) fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
             dp_rated: v[vr::VALVE_DP_RATED],
             dp_laminar: v[vr::VALVE_DP_LAMINAR],
         },
-        cylinder: CylinderTableParams {
+        cylinder: CylinderLoadParams {
             bore: v[vr::CYLINDER_BORE],
             rod: v[vr::CYLINDER_ROD],
             stroke: v[vr::CYLINDER_STROKE],

@@ -38,7 +38,7 @@
 //!   `Q_A = 1.28 K3 x_s` at `p_S = dp_r`). `K3 x_s` is exact only for a symmetric cylinder.
 //!
 
-use super::params::{CylinderTableParams, ValveParams};
+use super::params::{CylinderLoadParams, ValveParams};
 use super::valve::port_flows;
 
 /// Number of states: `[p_A, p_B, x, v]`.
@@ -106,7 +106,7 @@ impl CylinderParams {
     /// metering-port data. Checks the rules between parameters (single values were
     /// checked against their ranges at the model boundary).
     pub(crate) fn new(
-        cylinder: &CylinderTableParams,
+        cylinder: &CylinderLoadParams,
         valve: &ValveParams,
     ) -> Result<CylinderParams, String> {
         let c = cylinder;

@@ -23,7 +23,7 @@ mod state_bytes;
 mod valve;
 
 pub use params::{
-    CoilParams, ControlMode, CylinderTableParams, DriverKind, HBridgeParams, Inputs,
+    CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
     OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, ValveParams,
 };
 

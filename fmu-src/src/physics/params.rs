@@ -103,7 +103,7 @@ pub struct ValveParams {
 
 /// Cylinder, load, leakage and fluid (pressures gauge).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CylinderTableParams {
+pub struct CylinderLoadParams {
     pub bore: f64,
     pub rod: f64,
     pub stroke: f64,
@@ -149,7 +149,7 @@ pub struct Params {
     pub hbridge: HBridgeParams,
     pub coil: CoilParams,
     pub valve: ValveParams,
-    pub cylinder: CylinderTableParams,
+    pub cylinder: CylinderLoadParams,
     pub outer_loop: OuterLoopParams,
 }
 
