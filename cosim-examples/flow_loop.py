@@ -1,9 +1,9 @@
-"""The paper's flow-loop comparison (Fig. 10/11, MODEL.md rows 8 and 9) through the FMU.
+"""The paper's flow-loop comparison (Fig. 10/11, rows 8 and 9 of the figures table) through the FMU.
 
 control_mode 1 (flow PID on Q_valve with the feed-forward Q_ref/(K3*K1/Kw)), driver
 opamp_pi, Q_ref 0 -> 2e-4 m3/s at t = 0 from rest at mid-stroke, F_ext 0, outputs every
 10 us, once with the high-voltage 72 V supply and once with a low-voltage 10 V supply
-(ehsv_scenarios.compare_flow_supplies, the same runs tests/python/test_cylinder.py
+(ehsv.compare_flow_supplies, the same runs tests/python/test_cylinder.py
 checks). Prints the 5 % settling times of Q_valve beside the paper's (3.3 ms and 6 ms)
 and their ratio (paper: 181 %), and writes out/flow_loop.png: Q_valve, i_coil and the
 piston position against time for both supplies.
@@ -11,12 +11,12 @@ piston position against time for both supplies.
     cargo run --release -p build-fmu      # the archives, once
     .venv/bin/python cosim-examples/flow_loop.py [--fmi3] [--out PATH]
 """
+
 import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import ehsv_scenarios as ehsv  # noqa: E402
+import ehsv
 
 COLORS = {72.0: "tab:blue", 10.0: "tab:red"}
 
@@ -34,14 +34,14 @@ def main(argv=None) -> int:
         return 1
 
     results = ehsv.compare_flow_supplies(version)
-    print(f"EhsvActuator ({version}): control_mode 1 (flow loop), opamp_pi, Q_ref 0 -> "
-          f"{ehsv.FLOW_STEP:g} m3/s at t = 0, output every {ehsv.FLOW_H * 1e6:g} us; "
-          f"5 % settling time of Q_valve around Q_ref")
+    print(
+        f"EhsvActuator ({version}): control_mode 1 (flow loop), opamp_pi, Q_ref 0 -> "
+        f"{ehsv.FLOW_STEP:g} m3/s at t = 0, output every {ehsv.FLOW_H * 1e6:g} us; "
+        f"5 % settling time of Q_valve around Q_ref"
+    )
     print(ehsv.flow_table(results))
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = ehsv.pyplot()
 
     fig, (ax1, ax2, ax3) = plt.subplots(3, 1, sharex=True, figsize=(9, 9))
     q_lmin = ehsv.FLOW_STEP * 6e4
@@ -68,7 +68,9 @@ def main(argv=None) -> int:
     ax3.set_xlim(0, ehsv.FLOW_T_STOP * 1e3)
     ax3.legend(loc="lower right", fontsize=8)
     ax3.grid(alpha=0.3)
-    fig.suptitle(f"EhsvActuator: flow step 0 -> {q_lmin:g} L/min, high- and low-voltage driver supply ({version})")
+    fig.suptitle(
+        f"EhsvActuator: flow step 0 -> {q_lmin:g} L/min, high- and low-voltage driver supply ({version})"
+    )
     ehsv.save_figure(fig, args.out)
     print(f"figure: {args.out}")
     return 0

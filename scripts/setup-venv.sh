@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Creates .venv at the repo root (if missing or made from a different Python) and installs
-# the pinned requirements.txt into it. Idempotent: a stamp file holds the hash of the
+# Creates .venv at the repo root (if missing or made from a different Python), installs
+# the pinned requirements.txt into it and puts cosim-examples/ on its path (a .pth file:
+# the `ehsv` package of the examples and tests, editable in place). Idempotent: a stamp file holds the hash of the
 # requirements and the Python version, so a second run does nothing and takes well under
 # a second. Usage: scripts/setup-venv.sh   (PYTHON=python3.11 to choose the interpreter)
 set -euo pipefail
@@ -19,8 +20,17 @@ fi
 pyver="$("$PYTHON" -c 'import sys; print("%d.%d.%d" % sys.version_info[:3])')"
 want="$( (sha256sum "$REQ" | cut -d' ' -f1; echo "python $pyver") | sha256sum | cut -d' ' -f1)"
 
+# The ehsv package (cosim-examples/ehsv) on the venv's path, like `pip install -e
+# cosim-examples` but without a build step; rewritten each time (the clone may have moved).
+link_package() {
+    local site
+    site="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+    echo "$ROOT/cosim-examples" > "$site/ehsv-examples.pth"
+}
+
 if [[ -x "$VENV/bin/python" && -f "$STAMP" && "$(cat "$STAMP")" == "$want" ]] \
         && "$VENV/bin/python" -c 'import fmpy, numpy, pytest' >/dev/null 2>&1; then
+    link_package
     exit 0  # up to date
 fi
 
@@ -50,6 +60,7 @@ rm -f /tmp/setup-venv.err.$$
 
 echo "setup-venv: installing requirements into $VENV" >&2
 "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ" >&2
-"$VENV/bin/python" -c 'import fmpy, numpy, pytest, matplotlib' >&2
+link_package
+"$VENV/bin/python" -c 'import fmpy, numpy, pytest, matplotlib, ehsv' >&2
 echo "$want" > "$STAMP"
 echo "setup-venv: ready ($VENV, Python $pyver)" >&2

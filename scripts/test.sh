@@ -5,6 +5,7 @@
 #   3. cargo run --release -p build-fmu         (target/fmu/EhsvActuator-fmi{2,3}.fmu)
 #   4. pytest tests/python                      (both archives through fmpy + fmutool)
 #   5. benchmark smoke run through the C API    (bench --quick)
+#   6. quality gates: cargo fmt --check, clippy -D warnings, cargo doc -D warnings, ruff
 # Every stage runs even if an earlier one failed (pytest then says what is missing);
 # the exit status is non-zero if any stage failed.
 set -uo pipefail
@@ -32,6 +33,13 @@ stage build-fmu cargo run --release -p build-fmu
 stage pytest .venv/bin/python -m pytest tests/python -q
 stage cdylib cargo build --release -p ehsv-actuator
 stage bench cargo run --release -p ehsv-tests --bin bench -- --quick
+
+# ---- quality gates: formatting, lints and docs are part of passing, not advice.
+stage fmt cargo fmt --all -- --check
+stage clippy cargo clippy --workspace --all-targets --release -- -D warnings
+stage doc env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace
+stage ruff-check .venv/bin/ruff check cosim-examples tests/python
+stage ruff-format .venv/bin/ruff format --check cosim-examples tests/python
 
 # ---- robustness and conformance (see README "Robustness and conformance"); the fuzz and
 # robustness tests already ran in cargo-test, the importer/state tests in pytest.

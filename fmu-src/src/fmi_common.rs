@@ -1,6 +1,8 @@
 //! What the FMI 2.0 and FMI 3.0 C APIs share: the instance (model + FMI state + logger),
-//! the call-sequence check, logging, panic catching, the typed get/set paths and the
-//! FMU-state (snapshot) handling. [`crate::fmi2`] and [`crate::fmi3`] are thin shells over it.
+//! the frame every call runs in (call-sequence check against the table of
+//! [`crate::fmi_state_machine`], panic catching, the Error state), logging, the typed
+//! get/set paths and the FMU states (snapshots) an instance owns. [`crate::fmi2`] and
+//! [`crate::fmi3`] are thin shells over it.
 //!
 //! Every `unsafe` operation here dereferences a pointer handed in by the importer; the
 //! FMI standards make the importer responsible for its validity (an array of `n`
@@ -9,10 +11,12 @@
 
 #![deny(unsafe_op_in_unsafe_fn)]
 
+use std::collections::HashMap;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use crate::model::Model;
+pub(crate) use crate::fmi_state_machine::{Call, State, Version};
+use crate::model::{communication_point_tolerance, Model};
 use crate::physics::StepEvents;
 use crate::variables::{Causality, VarType, Variability, VARIABLES};
 
@@ -45,44 +49,7 @@ pub enum Status {
     Fatal = 4,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Version {
-    Fmi2,
-    Fmi3,
-}
-
-/// FMI state of an instance. FMI 2 calls [`State::StepMode`] "StepComplete". States the
-/// FMU never enters are left out: StepInProgress/StepFailed/StepCanceled (synchronous,
-/// steps never fail half-way), Error/Fatal (an Error keeps the instance in its state,
-/// as the Reference FMUs do), ConfigurationMode/EventMode (no structural parameters, no
-/// event mode).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum State {
-    Instantiated,
-    InitializationMode,
-    StepMode,
-    Terminated,
-}
-
-impl State {
-    pub(crate) fn name(self, version: Version) -> &'static str {
-        match (self, version) {
-            (State::Instantiated, _) => "Instantiated",
-            (State::InitializationMode, _) => "InitializationMode",
-            (State::StepMode, Version::Fmi2) => "StepComplete",
-            (State::StepMode, Version::Fmi3) => "StepMode",
-            (State::Terminated, _) => "Terminated",
-        }
-    }
-}
-
-use State::*;
-pub(crate) const ANY_STATE: &[State] = &[Instantiated, InitializationMode, StepMode, Terminated];
-/// Getters: any state after instantiation (before initialisation the outputs are the
-/// initial equilibrium of the current parameters).
-pub(crate) const GET_STATES: &[State] = ANY_STATE;
-/// Setters at function level; which variable may be set when is [`Instance::check_settable`].
-pub(crate) const SET_STATES: &[State] = &[Instantiated, InitializationMode, StepMode];
+use State::{InitializationMode, Instantiated, StepMode, Terminated};
 
 /// FMI 2 `fmi2CallbackLogger` (C-variadic: the message is a printf format string).
 pub type Fmi2Logger =
@@ -128,7 +95,6 @@ impl Logger {
 }
 
 const INSTANCE_MAGIC: u64 = 0x4548_5356_494e_5354; // "EHSVINST"
-const STATE_MAGIC: u64 = 0x4548_5356_5354_4154; // "EHSVSTAT"
 
 /// One FMU instance, behind the `fmi2Component` / `fmi3Instance` pointer.
 #[repr(C)]
@@ -144,14 +110,56 @@ pub(crate) struct Instance {
     pub(crate) model: Model,
     pub(crate) state: State,
     pub(crate) stop_time: Option<f64>,
+    /// The FMU states this instance handed out and the importer has not freed, by the
+    /// address the importer holds: FreeInstance frees what is left, and a pointer that is
+    /// not in here (freed, foreign, garbage) is refused without being read.
+    fmu_states: HashMap<usize, Box<SavedState>>,
 }
 
-/// Snapshot behind `fmi2FMUstate` / `fmi3FMUState`: the model only; the FMI state of
-/// the instance is not part of it.
-#[repr(C)]
+/// An FMU state behind `fmi2FMUstate` / `fmi3FMUState`: everything needed to continue
+/// (FMI 2.0.4 2.1.8, FMI 3.0): the model, the FMI state it was taken in, the stop time.
 struct SavedState {
-    magic: u64,
     model: Model,
+    mode: State,
+    stop_time: Option<f64>,
+}
+
+/// Format and version of the serialized FMU state (the model's own bytes are inside).
+const FMU_STATE_MAGIC: &[u8; 8] = b"EHSVFS01";
+
+impl SavedState {
+    /// mode | stop time defined (0/1) | stop time (0 if undefined) | model bytes, framed
+    /// and checksummed as the model's bytes are.
+    fn to_bytes(&self) -> Vec<u8> {
+        let mut body = vec![self.mode.code(), self.stop_time.is_some() as u8];
+        body.extend_from_slice(&self.stop_time.unwrap_or(0.0).to_le_bytes());
+        body.extend_from_slice(&self.model.to_bytes());
+        crate::model::frame(FMU_STATE_MAGIC, &body)
+    }
+
+    /// Inverse of [`SavedState::to_bytes`]; refuses what the FMU would never have written.
+    fn from_bytes(bytes: &[u8]) -> Result<SavedState, String> {
+        let body = crate::model::unframe(FMU_STATE_MAGIC, bytes)?;
+        let (head, model) = body.split_at_checked(10).ok_or("state is truncated")?;
+        let mode = State::from_code(head[0])
+            .ok_or_else(|| format!("state has an unknown FMI mode code {}", head[0]))?;
+        let stop = f64::from_le_bytes(head[2..10].try_into().expect("8 bytes"));
+        let stop_time = match head[1] {
+            0 if stop.to_bits() == 0 => None,
+            1 if stop.is_finite() => Some(stop),
+            flag => return Err(format!("state has an invalid stop time ({flag}, {stop})")),
+        };
+        let model = Model::from_bytes(model)?;
+        check_restored(&model)?;
+        if model.is_initialized() != matches!(mode, StepMode | Terminated) {
+            return Err(format!(
+                "state's FMI mode code {} does not match its model (initialised: {})",
+                head[0],
+                model.is_initialized()
+            ));
+        }
+        Ok(SavedState { model, mode, stop_time })
+    }
 }
 
 fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
@@ -232,6 +240,7 @@ pub(crate) unsafe fn instantiate(
         model: Model::new(),
         state: Instantiated,
         stop_time: None,
+        fmu_states: HashMap::new(),
     });
     inst.trace(|| format!("{func}: instance '{shown}' created"));
     Box::into_raw(inst).cast()
@@ -248,9 +257,10 @@ unsafe fn instance_ptr(ptr: *mut c_void) -> Option<*mut Instance> {
 }
 
 /// The frame of every exported function taking an instance: NULL/foreign instance →
-/// Error (no logger to tell); wrong FMI version or illegal state → Error + log; then
-/// `f`, with panics caught and logged as "internal error". `Err` and `Ok` both carry the
-/// status to return (`Err` for early exits through `?`).
+/// Error (no logger to tell); wrong FMI version, or `call` not allowed in the instance's
+/// state by the table → Error + log, nothing changed; then `f`, with panics caught,
+/// logged as "internal error" and the instance put in the Error state. `Err` and `Ok`
+/// both carry the status to return (`Err` for early exits through `?`).
 ///
 /// # Safety
 /// `ptr` is NULL or a live instance from our `Instantiate`; nothing else may use the
@@ -259,7 +269,7 @@ pub(crate) unsafe fn with_instance(
     ptr: *mut c_void,
     version: Version,
     func: &'static str,
-    allowed: &[State],
+    call: Call,
     f: impl FnOnce(&mut Instance) -> Result<Status, Status>,
 ) -> Status {
     // SAFETY: forwarded contract.
@@ -273,12 +283,17 @@ pub(crate) unsafe fn with_instance(
                 return inst.fail("called with an instance of the other FMI version");
             }
             inst.trace(|| format!("{func} (state {})", inst.state.name(version)));
-            if !allowed.contains(&inst.state) {
-                let names: Vec<_> = allowed.iter().map(|s| s.name(version)).collect();
+            let allowed = call.allowed();
+            if !allowed.contains(inst.state) {
+                let after_error = if inst.state == State::Error {
+                    "; after a failed call only SetFMUState, Reset and FreeInstance go on"
+                } else {
+                    ""
+                };
                 return inst.fail(&format!(
-                    "illegal call sequence: {func} is not allowed in state {} (only in {})",
+                    "illegal call sequence: {func} is not allowed in state {} (only in {}){after_error}",
                     inst.state.name(version),
-                    names.join(", ")
+                    allowed.names(version)
                 ));
             }
             match f(inst) {
@@ -288,7 +303,11 @@ pub(crate) unsafe fn with_instance(
         |msg| {
             // SAFETY: as above; the closure that panicked no longer borrows the instance.
             let inst = unsafe { &mut *p };
-            guarded(|| inst.fail(&format!("internal error: {msg}")), |_| Status::Error)
+            inst.state = State::Error;
+            guarded(
+                || inst.fail(&format!("internal error: {msg}; the instance is in the Error state")),
+                |_| Status::Error,
+            )
         },
     )
 }
@@ -310,31 +329,11 @@ pub(crate) unsafe fn free_instance(ptr: *mut c_void, version: Version, func: &'s
                 std::mem::forget(inst); // not ours to free through this API
                 return;
             }
-            inst.trace(|| func.to_string());
-            inst.magic = 0;
+            inst.trace(|| format!("{func} (and {} FMU state(s) not freed)", inst.fmu_states.len()));
+            inst.magic = 0; // dropping `inst` frees the instance and its FMU states
         },
         |_| (),
     )
-}
-
-/// An unsupported function: Error + "fmiX is not supported by EhsvActuator".
-///
-/// # Safety
-/// As [`with_instance`].
-pub(crate) unsafe fn unsupported(
-    ptr: *mut c_void,
-    version: Version,
-    func: &'static str,
-    why: &str,
-) -> Status {
-    // SAFETY: forwarded contract.
-    unsafe {
-        with_instance(ptr, version, func, ANY_STATE, |inst| {
-            let msg = format!("{func} is not supported by EhsvActuator{why}");
-            inst.log(Status::Error, LOG_ERROR, &msg);
-            Err(Status::Error)
-        })
-    }
 }
 
 /// Conversions between a C value type and the model's `f64`, and which variable
@@ -444,6 +443,14 @@ impl Instance {
     /// [`Instance::fail`] as `Err`, for `?`.
     pub(crate) fn error<T>(&self, message: &str) -> Result<T, Status> {
         Err(self.fail(message))
+    }
+
+    /// A function of a capability this FMU does not have: Error + "fmiX is not supported
+    /// by EhsvActuator<why>".
+    pub(crate) fn unsupported(&self, why: &str) -> Result<Status, Status> {
+        let msg = format!("{} is not supported by EhsvActuator{why}", self.func);
+        self.log(Status::Error, LOG_ERROR, &msg);
+        Err(Status::Error)
     }
 
     /// Logs "<function>: <message>" as a warning (if enabled) and returns `Err(Discard)`.
@@ -731,7 +738,18 @@ impl Instance {
         Ok(Status::OK)
     }
 
-    /// Ends initialisation: the model checks its parameters together.
+    pub(crate) fn enter_initialization(&mut self) -> Result<Status, Status> {
+        self.state = InitializationMode;
+        Ok(Status::OK)
+    }
+
+    pub(crate) fn terminate(&mut self) -> Result<Status, Status> {
+        self.state = Terminated;
+        Ok(Status::OK)
+    }
+
+    /// Ends initialisation: the model checks its parameters together (a refusal leaves
+    /// the instance in Initialization Mode, to correct them).
     pub(crate) fn exit_initialization(&mut self) -> Result<Status, Status> {
         match self.model.initialize() {
             Ok(()) => {
@@ -750,12 +768,16 @@ impl Instance {
         Ok(Status::OK)
     }
 
-    /// One communication step; on error the model keeps its state.
+    /// One communication step. A step the model refuses up front, or one past the stop
+    /// time, is a refusal (nothing changes); a step whose computation fails puts the
+    /// instance in the Error state (the model itself is left as before the call).
     pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Result<Status, Status> {
+        if let Err(e) = self.model.check_step(t, h) {
+            return self.error(&e);
+        }
         if let Some(stop) = self.stop_time {
             let end = t + h;
-            let tolerance = 1e-9 * stop.abs().max(h.abs()).max(1e-9);
-            if end > stop + tolerance {
+            if end > stop + communication_point_tolerance(stop, h) {
                 return self.error(&format!(
                     "a step from {t} by {h} ends at {end}, after stopTime {stop}"
                 ));
@@ -766,7 +788,13 @@ impl Instance {
                 self.log_events(t, h, events);
                 Ok(Status::OK)
             }
-            Err(e) => self.error(&e),
+            Err(e) => {
+                self.state = State::Error;
+                self.error(&format!(
+                    "{e}; the step failed and the instance is in the Error state \
+                     (SetFMUState to an earlier state, Reset or FreeInstance go on)"
+                ))
+            }
         }
     }
 
@@ -786,98 +814,110 @@ impl Instance {
         );
     }
 
-    /// A snapshot pointer handed back by the importer, checked to be one of ours.
-    ///
-    /// # Safety
-    /// `ptr` is NULL or a state from our `GetFMUState`/`DeserializeFMUState`, not yet freed.
-    unsafe fn saved<'a>(&self, ptr: *mut c_void) -> Result<&'a mut SavedState, Status> {
-        let p = ptr.cast::<SavedState>();
-        // SAFETY: a non-NULL aligned `p` is a live SavedState (contract); magic is its first field.
-        if p.is_null() || !p.is_aligned() || unsafe { (*p).magic } != STATE_MAGIC {
-            return self.error("the FMU state is NULL or not an EhsvActuator FMU state");
+    /// The FMU state behind a pointer the importer hands back, if this instance made it
+    /// and it was not freed; anything else is refused without being read.
+    fn saved(&self, ptr: *mut c_void) -> Result<&SavedState, Status> {
+        match self.fmu_states.get(&(ptr as usize)) {
+            Some(saved) => Ok(saved),
+            None => self.error(
+                "the FMU state is NULL, freed, or not one this instance made \
+                 (an FMU state belongs to the instance that took or deserialized it)",
+            ),
         }
-        // SAFETY: as above; the importer does not use the state concurrently.
-        Ok(unsafe { &mut *p })
     }
 
-    /// Stores `model` into `*state`, reusing a non-NULL `*state` (as the standards require).
+    /// Stores `saved` into `*state`: a new FMU state for a NULL `*state`, else the one
+    /// given is overwritten (as the standards require).
     ///
     /// # Safety
-    /// `state` is NULL or points to NULL or to a live state of ours.
-    unsafe fn store_state(&self, state: *mut *mut c_void, model: Model) -> Result<Status, Status> {
+    /// `state` is NULL or points to a writable FMU-state pointer.
+    unsafe fn store_state(
+        &mut self,
+        state: *mut *mut c_void,
+        saved: SavedState,
+    ) -> Result<Status, Status> {
         // SAFETY: forwarded contract.
         let slot = unsafe { self.out("FMUState", state)? };
         if slot.is_null() {
-            *slot = Box::into_raw(Box::new(SavedState { magic: STATE_MAGIC, model })).cast();
+            let mut boxed = Box::new(saved);
+            let address: *mut SavedState = &mut *boxed;
+            self.fmu_states.insert(address as usize, boxed);
+            *slot = address.cast();
         } else {
-            // SAFETY: a non-NULL *state is a previous state of ours (contract, checked by magic).
-            unsafe { self.saved(*slot)? }.model = model;
+            match self.fmu_states.get_mut(&(*slot as usize)) {
+                Some(old) => **old = saved,
+                None => return self.saved(*slot).map(|_| Status::OK),
+            }
         }
         Ok(Status::OK)
     }
 
     /// # Safety
     /// See [`Instance::store_state`].
-    pub(crate) unsafe fn get_fmu_state(&self, state: *mut *mut c_void) -> Result<Status, Status> {
+    pub(crate) unsafe fn get_fmu_state(
+        &mut self,
+        state: *mut *mut c_void,
+    ) -> Result<Status, Status> {
+        let saved =
+            SavedState { model: self.model.clone(), mode: self.state, stop_time: self.stop_time };
         // SAFETY: forwarded contract.
-        unsafe { self.store_state(state, self.model.clone()) }
+        unsafe { self.store_state(state, saved) }
     }
 
-    /// Restores the model; the FMI state of the instance is not part of a snapshot.
-    ///
-    /// # Safety
-    /// `state` is NULL or a live state of ours.
-    pub(crate) unsafe fn set_fmu_state(&mut self, state: *mut c_void) -> Result<Status, Status> {
-        // SAFETY: forwarded contract.
-        let saved = unsafe { self.saved(state)? };
-        self.model = saved.model.clone();
+    /// Restores the model, the FMI state the FMU state was taken in and the stop time:
+    /// the instance continues as it would have from there (also out of the Error state).
+    pub(crate) fn set_fmu_state(&mut self, state: *mut c_void) -> Result<Status, Status> {
+        let saved = self.saved(state)?;
+        let (model, mode, stop_time) = (saved.model.clone(), saved.mode, saved.stop_time);
+        self.model = model;
+        self.state = mode;
+        self.stop_time = stop_time;
         Ok(Status::OK)
     }
 
     /// Frees `*state` and sets it to NULL; NULL `state` or `*state` is a no-op.
     ///
     /// # Safety
-    /// `state` is NULL or points to NULL or to a live state of ours.
-    pub(crate) unsafe fn free_fmu_state(&self, state: *mut *mut c_void) -> Result<Status, Status> {
+    /// `state` is NULL or points to a readable and writable FMU-state pointer.
+    pub(crate) unsafe fn free_fmu_state(
+        &mut self,
+        state: *mut *mut c_void,
+    ) -> Result<Status, Status> {
         // SAFETY: a non-NULL `state` is a readable/writable pointer slot (contract).
-        if state.is_null() || unsafe { (*state).is_null() } {
+        let Some(slot) = (unsafe { state.as_mut() }) else { return Ok(Status::OK) };
+        if slot.is_null() {
             return Ok(Status::OK);
         }
-        // SAFETY: forwarded contract.
-        let saved: *mut SavedState = unsafe { self.saved(*state)? };
-        // SAFETY: the state came from Box::into_raw in `store_state`; freed exactly once.
-        let mut boxed = unsafe { Box::from_raw(saved) };
-        boxed.magic = 0;
-        drop(boxed);
-        // SAFETY: as above.
-        unsafe { *state = std::ptr::null_mut() };
+        match self.fmu_states.remove(&(*slot as usize)) {
+            Some(freed) => drop(freed),
+            None => return self.saved(*slot).map(|_| Status::OK),
+        }
+        *slot = std::ptr::null_mut();
         Ok(Status::OK)
     }
 
     /// # Safety
-    /// `state` is NULL or a live state of ours; `size` is NULL or writable.
+    /// `size` is NULL or writable.
     pub(crate) unsafe fn serialized_size(
         &self,
         state: *mut c_void,
         size: *mut usize,
     ) -> Result<Status, Status> {
-        // SAFETY: forwarded contracts.
-        let (saved, size) = unsafe { (self.saved(state)?, self.out("size", size)?) };
-        *size = saved.model.to_bytes().len();
+        let bytes = self.saved(state)?.to_bytes();
+        // SAFETY: forwarded contract.
+        *unsafe { self.out("size", size)? } = bytes.len();
         Ok(Status::OK)
     }
 
     /// # Safety
-    /// `state` as above; `bytes` points to `size` writable bytes.
+    /// `bytes` points to `size` writable bytes.
     pub(crate) unsafe fn serialize(
         &self,
         state: *mut c_void,
         bytes: *mut u8,
         size: usize,
     ) -> Result<Status, Status> {
-        // SAFETY: forwarded contract.
-        let saved = unsafe { self.saved(state)? };
-        let data = saved.model.to_bytes();
+        let data = self.saved(state)?.to_bytes();
         if size < data.len() {
             return self.error(&format!(
                 "size {size} is too small: the serialized state has {} bytes",
@@ -893,19 +933,19 @@ impl Instance {
     /// # Safety
     /// `bytes` points to `size` readable bytes; `state` as in [`Instance::store_state`].
     pub(crate) unsafe fn deserialize(
-        &self,
+        &mut self,
         bytes: *const u8,
         size: usize,
         state: *mut *mut c_void,
     ) -> Result<Status, Status> {
         // SAFETY: forwarded array contract.
         let data = unsafe { self.slice("serializedState", bytes, size)? };
-        let model = match Model::from_bytes(data).and_then(|m| check_restored(&m).map(|()| m)) {
-            Ok(m) => m,
+        let saved = match SavedState::from_bytes(data) {
+            Ok(saved) => saved,
             Err(e) => return self.error(&format!("cannot deserialize the FMU state: {e}")),
         };
         // SAFETY: forwarded contract.
-        unsafe { self.store_state(state, model) }
+        unsafe { self.store_state(state, saved) }
     }
 }
 
@@ -964,16 +1004,27 @@ mod tests {
         assert!(!inst.is_null());
         // SAFETY: `inst` is live.
         let status = unsafe {
-            with_instance(inst, Version::Fmi3, "fmi3Boom", ANY_STATE, |_| panic!("boom {}", 42))
+            with_instance(inst, Version::Fmi3, "fmi3Boom", Call::GetValues, |_| {
+                panic!("boom {}", 42)
+            })
         };
         assert_eq!(status, Status::Error);
         assert!(
-            log.lock().unwrap().iter().any(|m| m == "fmi3Boom: internal error: boom 42"),
+            log.lock()
+                .unwrap()
+                .iter()
+                .any(|m| m
+                    == "fmi3Boom: internal error: boom 42; the instance is in the Error state"),
             "{log:?}"
         );
         // SAFETY: still live.
+        let status = unsafe {
+            with_instance(inst, Version::Fmi3, "fmi3Terminate", Call::Terminate, |_| Ok(Status::OK))
+        };
+        assert_eq!(status, Status::Error, "the Error state refuses what is not a way out");
+        // SAFETY: still live.
         let status =
-            unsafe { with_instance(inst, Version::Fmi3, "fmi3Reset", ANY_STATE, |i| i.reset()) };
+            unsafe { with_instance(inst, Version::Fmi3, "fmi3Reset", Call::Reset, |i| i.reset()) };
         assert_eq!(status, Status::OK);
         // SAFETY: freed once.
         unsafe { free_instance(inst, Version::Fmi3, "fmi3FreeInstance") };

@@ -2,15 +2,18 @@
 //! Co-Simulation FMU.
 //!
 //! * [`variables`] and [`units`]: the one table of variables (drives XML, get/set, validation).
-//! * [`physics`]: plain-Rust model of driver, coil and Moog 30 valve, with its exact
-//!   piecewise-linear integrator. No FFI, no `unsafe`.
-//! * [`model`]: a model instance as the FMI layer sees it (values by reference, step, state bytes).
-//! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code).
+//! * [`model`]: a model instance as the FMI layer sees it (values by reference, step, state
+//!   bytes); the typed boundary between value references and the physics.
+//! * [`physics`]: plain-Rust model of driver, coil, Moog 30 valve, cylinder and load, with
+//!   its exact piecewise-linear and Rosenbrock integrators. No FFI, no `unsafe`.
+//! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code), generated alike over
+//!   [`fmi_common`]; [`fmi_state_machine`]: the call-sequence table and the Error rules.
 
 pub mod fmi2;
 pub mod fmi3;
 pub mod fmi_common;
-pub mod hydraulics;
+mod fmi_macros;
+pub mod fmi_state_machine;
 pub mod model;
 pub mod physics;
 pub mod units;

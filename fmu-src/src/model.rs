@@ -1,16 +1,35 @@
 //! A model instance as the FMI layer sees it: values by value reference, initialise,
 //! step, reset, and a self-checking byte form of the whole state.
+//!
+//! This is the typed boundary: the value array (indexed by value reference) is turned into
+//! [`Params`] and [`Inputs`] here, and the physics' [`Outputs`] are written back here. The
+//! physics never sees a value reference or a variable name.
 
-use crate::physics::{Physics, StepEvents};
-use crate::variables::{start_values, Causality, N_VARIABLES, VARIABLES};
+use std::cell::RefCell;
+
+use crate::physics::{
+    CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
+    OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams,
+};
+use crate::variables::{start_values, vr, Causality, N_VARIABLES, VARIABLES};
 
 #[derive(Clone)]
 pub struct Model {
+    time: f64,
+    initialized: bool,
+    /// Values and physics; in a cell because outputs read before initialisation are built
+    /// lazily, on the first read after a change (a read is `&self`).
+    state: RefCell<State>,
+}
+
+#[derive(Clone)]
+struct State {
     /// Parameters and inputs as set by the importer, outputs as last computed; by value reference.
     values: [f64; N_VARIABLES],
     physics: Physics,
-    time: f64,
-    initialized: bool,
+    /// Before initialisation: parameters, inputs or the start time changed since `physics`
+    /// and the outputs were built.
+    stale: bool,
 }
 
 impl Default for Model {
@@ -22,9 +41,11 @@ impl Default for Model {
 impl Model {
     pub fn new() -> Self {
         let values = start_values();
-        let mut m = Model { values, physics: Physics::default(), time: 0.0, initialized: false };
-        m.refresh_before_start();
-        m
+        let physics = Physics::start(&start_params(), &inputs(&values), 0.0)
+            .expect("the start values are valid");
+        let mut state = State { values, physics, stale: false };
+        state.write_outputs();
+        Model { time: 0.0, initialized: false, state: RefCell::new(state) }
     }
 
     /// Back to start values (FMI Reset).
@@ -42,10 +63,14 @@ impl Model {
 
     /// Value by value reference (index into the variable table); `None` for an unknown reference.
     pub fn get(&self, index: usize) -> Option<f64> {
-        if index == crate::variables::vr::TIME {
+        if index == vr::TIME {
             return Some(self.time);
         }
-        self.values.get(index).copied()
+        let var = VARIABLES.get(index)?;
+        if var.causality == Causality::Output {
+            self.refresh_before_start();
+        }
+        Some(self.state.borrow().values[index])
     }
 
     /// Stores a parameter or input after checking type and range. Which variables may be
@@ -56,9 +81,10 @@ impl Model {
             return Err(format!("{} is {:?}: it cannot be set", var.name, var.causality));
         }
         var.check(value)?;
-        self.values[index] = value;
+        let state = self.state.get_mut();
+        state.values[index] = value;
         if !self.initialized {
-            self.refresh_before_start();
+            state.stale = true;
         }
         Ok(())
     }
@@ -69,23 +95,38 @@ impl Model {
             return Err(format!("start time {start_time} is not finite"));
         }
         self.time = start_time;
+        if !self.initialized {
+            self.state.get_mut().stale = true;
+        }
         Ok(())
     }
 
     /// Before initialisation ends the outputs are those of the initial equilibrium for
-    /// the current parameters and inputs, so importers can read initial unknowns.
-    fn refresh_before_start(&mut self) {
-        if let Ok(p) = Physics::start(&self.values, self.time) {
-            self.physics = p;
-            self.physics.write_outputs(&mut self.values);
+    /// the current parameters and inputs, so importers can read initial unknowns. They are
+    /// built once, when first read after a change, not on every set; parameters that do
+    /// not fit together leave the last consistent outputs in place.
+    fn refresh_before_start(&self) {
+        let mut state = self.state.borrow_mut();
+        if !state.stale {
+            return;
+        }
+        state.stale = false;
+        let built = params(&state.values)
+            .and_then(|p| Physics::start(&p, &inputs(&state.values), self.time));
+        if let Ok(physics) = built {
+            state.physics = physics;
+            state.write_outputs();
         }
     }
 
     /// Ends initialisation: checks the parameters together, builds the integrator, puts the
     /// model in equilibrium for the current inputs.
     pub fn initialize(&mut self) -> Result<(), String> {
-        self.physics = Physics::start(&self.values, self.time)?;
-        self.physics.write_outputs(&mut self.values);
+        let state = self.state.get_mut();
+        let p = params(&state.values)?;
+        state.physics = Physics::start(&p, &inputs(&state.values), self.time)?;
+        state.write_outputs();
+        state.stale = false;
         self.initialized = true;
         Ok(())
     }
@@ -93,6 +134,19 @@ impl Model {
     /// Advances by `step` seconds from the current time. On error the instance keeps its
     /// state from before the call.
     pub fn do_step(&mut self, current_time: f64, step: f64) -> Result<StepEvents, String> {
+        self.check_step(current_time, step)?;
+        let state = self.state.get_mut();
+        let events = state.physics.advance(&inputs(&state.values), self.time, step)?;
+        state.write_outputs();
+        self.time = current_time + step;
+        Ok(events)
+    }
+
+    /// Refuses, without touching the model, a step no importer should ask for: before
+    /// initialisation, a step size that is not positive and finite, a communication point
+    /// away from the FMU time, a step too small to advance it. An error of
+    /// [`Model::do_step`] after this passed is a failure of the computation.
+    pub fn check_step(&self, current_time: f64, step: f64) -> Result<(), String> {
         if !self.initialized {
             return Err("doStep before initialisation ended".into());
         }
@@ -102,35 +156,41 @@ impl Model {
         if !current_time.is_finite() {
             return Err(format!("currentCommunicationPoint {current_time} is not finite"));
         }
-        let tolerance = 1e-9 * self.time.abs().max(step).max(1e-9);
+        let tolerance = communication_point_tolerance(self.time, step);
         if (current_time - self.time).abs() > tolerance {
             return Err(format!(
-                "currentCommunicationPoint {current_time} does not match the FMU time {}",
+                "currentCommunicationPoint {current_time} does not match the FMU time {} \
+                 (tolerance {tolerance:e} s)",
                 self.time
             ));
         }
-        let events = self.physics.advance(&self.values, self.time, step)?;
-        self.physics.write_outputs(&mut self.values);
-        self.time = current_time + step;
-        Ok(events)
+        if current_time + step <= self.time {
+            return Err(format!(
+                "a step of {step} s from {current_time} does not advance the FMU time {}",
+                self.time
+            ));
+        }
+        Ok(())
     }
 
     /// Versioned, self-checking byte form of the whole instance (no pointers).
     pub fn to_bytes(&self) -> Vec<u8> {
+        self.refresh_before_start();
+        let state = self.state.borrow();
         let mut body = Vec::with_capacity(16 + 8 * (N_VARIABLES + 16));
         body.extend_from_slice(&(N_VARIABLES as u32).to_le_bytes());
         body.push(self.initialized as u8);
         body.extend_from_slice(&self.time.to_le_bytes());
-        for v in &self.values {
+        for v in &state.values {
             body.extend_from_slice(&v.to_le_bytes());
         }
-        self.physics.write_bytes(&mut body);
-        crate::model::frame(&body)
+        state.physics.write_bytes(&mut body);
+        frame(MAGIC, &body)
     }
 
     /// Inverse of [`Model::to_bytes`]; refuses truncated, corrupted or foreign bytes.
     pub fn from_bytes(bytes: &[u8]) -> Result<Model, String> {
-        let body = unframe(bytes)?;
+        let body = unframe(MAGIC, bytes)?;
         let mut r = Reader { bytes: body, at: 0 };
         let n = r.u32()? as usize;
         if n != N_VARIABLES {
@@ -142,12 +202,139 @@ impl Model {
         for v in values.iter_mut() {
             *v = r.f64()?;
         }
-        let physics = Physics::read_bytes(&values, &mut r)?;
+        let p = params(&values).map_err(|e| format!("state holds invalid parameters: {e}"))?;
+        let physics = Physics::read_bytes(&p, &inputs(&values), &mut r)?;
         if r.at != body.len() {
             return Err("state has trailing bytes".into());
         }
-        Ok(Model { values, physics, time, initialized })
+        let state = State { values, physics, stale: false };
+        Ok(Model { time, initialized, state: RefCell::new(state) })
     }
+}
+
+impl State {
+    /// Writes the physics' outputs into their value references.
+    fn write_outputs(&mut self) {
+        let o: Outputs = self.physics.outputs();
+        let v = &mut self.values;
+        v[vr::I_COIL] = o.i_coil;
+        v[vr::U_DRIVER] = o.u_driver;
+        v[vr::DRIVER_SATURATED] = o.driver_saturated as u8 as f64;
+        v[vr::X_FLAPPER] = o.x_flapper;
+        v[vr::X_SPOOL] = o.x_spool;
+        v[vr::Q_VALVE] = o.q_valve;
+        v[vr::Q_A] = o.q_a;
+        v[vr::Q_B] = o.q_b;
+        v[vr::P_A] = o.p_a;
+        v[vr::P_B] = o.p_b;
+        v[vr::X_PISTON] = o.x_piston;
+        v[vr::V_PISTON] = o.v_piston;
+        v[vr::F_HYDRAULIC] = o.f_hydraulic;
+    }
+}
+
+/// The parameters at their start values.
+pub(crate) fn start_params() -> Params {
+    params(&start_values()).expect("the start values are valid")
+}
+
+/// The inputs in the value array.
+fn inputs(v: &[f64; N_VARIABLES]) -> Inputs {
+    Inputs {
+        i_ref: v[vr::I_REF],
+        v_supply: v[vr::V_SUPPLY],
+        p_supply: v[vr::P_SUPPLY],
+        f_ext: v[vr::F_EXT],
+        q_ref: v[vr::Q_REF],
+        x_ref: v[vr::X_REF],
+    }
+}
+
+/// The parameters in the value array, each checked against its range in the table
+/// (single values were checked when set; this checks them as a whole, e.g. restored bytes).
+pub(crate) fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
+    let driver = DriverKind::from_value(v[vr::DRIVER])?;
+    for (var, &value) in VARIABLES.iter().zip(v.iter()) {
+        if var.causality == Causality::Parameter {
+            var.check(value)?;
+        }
+    }
+    let pi = |kp: usize, ki: usize, slew_rate: usize| PiDriverParams {
+        kp: v[kp],
+        ki: v[ki],
+        slew_rate: v[slew_rate],
+    };
+    let pid = |kp: usize, ki: usize, kd: usize| [v[kp], v[ki], v[kd]];
+    Ok(Params {
+        driver,
+        control_mode: ControlMode::from_value(v[vr::CONTROL_MODE])?,
+        opamp: pi(vr::DRIVER_KP, vr::DRIVER_KI, vr::DRIVER_SLEW_RATE),
+        opamp_v_drop: v[vr::DRIVER_V_DROP],
+        industrial: pi(vr::INDUSTRIAL_KP, vr::INDUSTRIAL_KI, vr::INDUSTRIAL_SLEW_RATE),
+        hbridge: HBridgeParams {
+            f_pwm: v[vr::HBRIDGE_F_PWM],
+            f_sample: v[vr::HBRIDGE_F_SAMPLE],
+            kp: v[vr::HBRIDGE_KP],
+            ki: v[vr::HBRIDGE_KI],
+            feedforward: v[vr::HBRIDGE_FEEDFORWARD] != 0.0,
+        },
+        coil: CoilParams {
+            inductance: v[vr::COIL_L],
+            resistance: v[vr::COIL_R],
+            r_sense: v[vr::COIL_R_SENSE],
+            k_backemf: v[vr::COIL_K_B],
+        },
+        valve: ValveParams {
+            k1: v[vr::VALVE_K1],
+            kf: v[vr::VALVE_KF],
+            kw: v[vr::VALVE_KW],
+            k2: v[vr::VALVE_K2],
+            k3: v[vr::VALVE_K3],
+            spool_area: v[vr::VALVE_A_S],
+            zeta: v[vr::VALVE_ZETA],
+            f_n: v[vr::VALVE_F_N],
+            x_flapper_max: v[vr::VALVE_X_FLAPPER_MAX],
+            x_spool_max: v[vr::VALVE_X_SPOOL_MAX],
+            dp_rated: v[vr::VALVE_DP_RATED],
+            dp_laminar: v[vr::VALVE_DP_LAMINAR],
+        },
+        cylinder: CylinderLoadParams {
+            bore: v[vr::CYLINDER_BORE],
+            rod: v[vr::CYLINDER_ROD],
+            stroke: v[vr::CYLINDER_STROKE],
+            mass: v[vr::CYLINDER_MASS],
+            beta: v[vr::CYLINDER_BETA],
+            v_dead: v[vr::CYLINDER_V_DEAD],
+            b_viscous: v[vr::CYLINDER_B_VISCOUS],
+            f_coulomb: v[vr::CYLINDER_F_COULOMB],
+            f_static: v[vr::CYLINDER_F_STATIC],
+            v_stribeck: v[vr::CYLINDER_V_STRIBECK],
+            v_friction_smooth: v[vr::CYLINDER_V_FRICTION_SMOOTH],
+            k_endstop: v[vr::CYLINDER_K_ENDSTOP],
+            c_endstop: v[vr::CYLINDER_C_ENDSTOP],
+            c_leak: v[vr::CYLINDER_C_LEAK],
+            c_leak_external: v[vr::CYLINDER_C_LEAK_EXTERNAL],
+            p_tank: v[vr::HYDRAULICS_P_TANK],
+            p_cavitation: v[vr::HYDRAULICS_P_CAVITATION],
+            dp_cavitation_band: v[vr::HYDRAULICS_DP_CAVITATION_BAND],
+        },
+        outer_loop: OuterLoopParams {
+            f_sample: v[vr::LOOP_F_SAMPLE],
+            i_max: v[vr::LOOP_I_MAX],
+            flow: pid(vr::FLOW_KP, vr::FLOW_KI, vr::FLOW_KD),
+            position: pid(vr::POSITION_KP, vr::POSITION_KI, vr::POSITION_KD),
+        },
+    })
+}
+
+/// How far an importer's communication point may be from the FMU time: the rounding of
+/// its own `t + h` sums (4 ulps of t) plus a millionth of the step, so never more than a
+/// small fraction of the step however large t is (an epoch start time of 1.7e9 s has
+/// ulps of 0.24 us).
+pub fn communication_point_tolerance(time: f64, step: f64) -> f64 {
+    let abs = time.abs();
+    let ulp = f64::from_bits(abs.to_bits() + 1) - abs;
+    4.0 * ulp + 1e-6 * step
 }
 
 const MAGIC: &[u8; 8] = b"EHSVST01";
@@ -156,18 +343,19 @@ fn checksum(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))
 }
 
-/// magic | body length (u64) | body | FNV-1a 64 of body
-pub(crate) fn frame(body: &[u8]) -> Vec<u8> {
+/// magic | body length (u64) | body | FNV-1a 64 of body. The magic names the format
+/// and its version (the model's bytes, the FMI layer's FMU state around them).
+pub(crate) fn frame(magic: &[u8; 8], body: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(body.len() + 24);
-    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(magic);
     out.extend_from_slice(&(body.len() as u64).to_le_bytes());
     out.extend_from_slice(body);
     out.extend_from_slice(&checksum(body).to_le_bytes());
     out
 }
 
-fn unframe(bytes: &[u8]) -> Result<&[u8], String> {
-    if bytes.len() < 24 || &bytes[..8] != MAGIC {
+pub(crate) fn unframe<'a>(magic: &[u8; 8], bytes: &'a [u8]) -> Result<&'a [u8], String> {
+    if bytes.len() < 24 || &bytes[..8] != magic {
         return Err("not an EhsvActuator state (wrong magic or version)".into());
     }
     let len = u64::from_le_bytes(bytes[8..16].try_into().unwrap());
@@ -183,7 +371,7 @@ fn unframe(bytes: &[u8]) -> Result<&[u8], String> {
 }
 
 /// Bounds-checked little-endian reader for state bytes.
-pub struct Reader<'a> {
+pub(crate) struct Reader<'a> {
     bytes: &'a [u8],
     at: usize,
 }
@@ -199,13 +387,63 @@ impl Reader<'_> {
         self.at = end;
         Ok(s)
     }
-    pub fn u8(&mut self) -> Result<u8, String> {
+    pub(crate) fn u8(&mut self) -> Result<u8, String> {
         Ok(self.take(1)?[0])
     }
-    pub fn u32(&mut self) -> Result<u32, String> {
+    pub(crate) fn u32(&mut self) -> Result<u32, String> {
         Ok(u32::from_le_bytes(self.take(4)?.try_into().unwrap()))
     }
-    pub fn f64(&mut self) -> Result<f64, String> {
+    pub(crate) fn f64(&mut self) -> Result<f64, String> {
         Ok(f64::from_le_bytes(self.take(8)?.try_into().unwrap()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn params_are_checked_against_the_table_and_name_the_variable() {
+        let mut values = start_values();
+        values[vr::CYLINDER_MASS] = 0.0;
+        assert!(params(&values).unwrap_err().contains("cylinder.mass"));
+        values[vr::CYLINDER_MASS] = 5.0;
+        values[vr::CYLINDER_BETA] = f64::NAN;
+        assert!(params(&values).unwrap_err().contains("cylinder.beta"));
+        values[vr::CYLINDER_BETA] = 1e9;
+        values[vr::CYLINDER_ROD] = 0.02;
+        assert!(Physics::start(&params(&values).unwrap(), &inputs(&values), 0.0)
+            .err()
+            .unwrap()
+            .contains("cylinder.rod"));
+    }
+
+    #[test]
+    fn typed_params_mirror_the_value_array() {
+        let mut values = start_values();
+        values[vr::DRIVER] = 3.0;
+        values[vr::INDUSTRIAL_KP] = 1234.0;
+        values[vr::POSITION_KD] = 0.5;
+        values[vr::VALVE_DP_LAMINAR] = 2e5;
+        let p = params(&values).unwrap();
+        assert_eq!(p.driver, DriverKind::Industrial);
+        assert_eq!(p.industrial.kp, 1234.0);
+        assert_eq!(p.outer_loop.position, [1.0, 0.0, 0.5]);
+        assert_eq!(p.valve.dp_laminar, 2e5);
+        assert_eq!(p.coil.inductance, 3.2);
+    }
+
+    #[test]
+    fn outputs_before_initialisation_follow_the_last_set() {
+        let mut m = Model::new();
+        assert_eq!(m.get(vr::I_COIL), Some(0.0));
+        m.set(vr::I_REF, 0.005).unwrap();
+        m.set(vr::I_REF, 0.01).unwrap();
+        assert_eq!(m.get(vr::I_COIL), Some(0.01));
+        assert!(m.get(vr::Q_VALVE).unwrap() > 0.0);
+        // Parameters that do not fit together keep the last consistent outputs.
+        m.set(vr::CYLINDER_ROD, 0.02).unwrap();
+        assert_eq!(m.get(vr::I_COIL), Some(0.01));
+        assert!(m.initialize().unwrap_err().contains("cylinder.rod"));
     }
 }

@@ -221,90 +221,35 @@ impl Variable {
     }
 }
 
-/// Index (= value reference) of every variable, so code names variables, never numbers.
-pub mod vr {
-    pub const TIME: usize = 0;
-    pub const I_REF: usize = 1;
-    pub const V_SUPPLY: usize = 2;
-    pub const I_COIL: usize = 3;
-    pub const U_DRIVER: usize = 4;
-    pub const DRIVER_SATURATED: usize = 5;
-    pub const X_FLAPPER: usize = 6;
-    pub const X_SPOOL: usize = 7;
-    pub const Q_VALVE: usize = 8;
-    pub const DRIVER: usize = 9;
-    pub const CONTROL_MODE: usize = 10;
-    pub const DRIVER_KP: usize = 11;
-    pub const DRIVER_KI: usize = 12;
-    pub const DRIVER_V_DROP: usize = 13;
-    pub const DRIVER_SLEW_RATE: usize = 14;
-    pub const COIL_L: usize = 15;
-    pub const COIL_R: usize = 16;
-    pub const COIL_R_SENSE: usize = 17;
-    pub const COIL_K_B: usize = 18;
-    pub const VALVE_K1: usize = 19;
-    pub const VALVE_KF: usize = 20;
-    pub const VALVE_KW: usize = 21;
-    pub const VALVE_K2: usize = 22;
-    pub const VALVE_K3: usize = 23;
-    pub const VALVE_A_S: usize = 24;
-    pub const VALVE_ZETA: usize = 25;
-    pub const VALVE_F_N: usize = 26;
-    pub const INDUSTRIAL_KP: usize = 27;
-    pub const INDUSTRIAL_KI: usize = 28;
-    pub const INDUSTRIAL_SLEW_RATE: usize = 29;
-    pub const HBRIDGE_F_PWM: usize = 30;
-    pub const HBRIDGE_F_SAMPLE: usize = 31;
-    pub const HBRIDGE_KP: usize = 32;
-    pub const HBRIDGE_KI: usize = 33;
-    pub const HBRIDGE_FEEDFORWARD: usize = 34;
-    pub const VALVE_X_FLAPPER_MAX: usize = 35;
-    pub const VALVE_X_SPOOL_MAX: usize = 36;
-    pub const P_SUPPLY: usize = 37;
-    pub const F_EXT: usize = 38;
-    pub const Q_REF: usize = 39;
-    pub const X_REF: usize = 40;
-    pub const Q_A: usize = 41;
-    pub const Q_B: usize = 42;
-    pub const P_A: usize = 43;
-    pub const P_B: usize = 44;
-    pub const X_PISTON: usize = 45;
-    pub const V_PISTON: usize = 46;
-    pub const F_HYDRAULIC: usize = 47;
-    pub const CYLINDER_BORE: usize = 48;
-    pub const CYLINDER_ROD: usize = 49;
-    pub const CYLINDER_STROKE: usize = 50;
-    pub const CYLINDER_MASS: usize = 51;
-    pub const CYLINDER_BETA: usize = 52;
-    pub const CYLINDER_V_DEAD: usize = 53;
-    pub const CYLINDER_B_VISCOUS: usize = 54;
-    pub const CYLINDER_F_COULOMB: usize = 55;
-    pub const CYLINDER_F_STATIC: usize = 56;
-    pub const CYLINDER_V_STRIBECK: usize = 57;
-    pub const CYLINDER_V_FRICTION_SMOOTH: usize = 58;
-    pub const CYLINDER_K_ENDSTOP: usize = 59;
-    pub const CYLINDER_C_ENDSTOP: usize = 60;
-    pub const CYLINDER_C_LEAK: usize = 61;
-    pub const CYLINDER_C_LEAK_EXTERNAL: usize = 62;
-    pub const VALVE_DP_RATED: usize = 63;
-    pub const VALVE_DP_LAMINAR: usize = 64;
-    pub const HYDRAULICS_P_TANK: usize = 65;
-    pub const HYDRAULICS_P_CAVITATION: usize = 66;
-    pub const HYDRAULICS_DP_CAVITATION_BAND: usize = 67;
-    pub const LOOP_F_SAMPLE: usize = 68;
-    pub const LOOP_I_MAX: usize = 69;
-    pub const FLOW_KP: usize = 70;
-    pub const FLOW_KI: usize = 71;
-    pub const FLOW_KD: usize = 72;
-    pub const POSITION_KP: usize = 73;
-    pub const POSITION_KI: usize = 74;
-    pub const POSITION_KD: usize = 75;
+/// Declares the table and, from the same rows, one constant per variable in [`vr`]: the
+/// value reference of a variable is its row, so no reference is ever numbered by hand.
+macro_rules! variable_table {
+    ($($constant:ident => $row:expr,)*) => {
+        /// Row numbers, counted by the compiler.
+        #[allow(non_camel_case_types, clippy::upper_case_acronyms)]
+        #[repr(usize)]
+        enum Row {
+            $($constant,)*
+        }
+
+        /// Index (= value reference) of every variable, generated from the table, so code
+        /// names variables, never numbers.
+        pub mod vr {
+            $(pub const $constant: usize = super::Row::$constant as usize;)*
+        }
+
+        /// Constant names in row order (the test checks each is derived from its variable's name).
+        #[cfg(test)]
+        const CONSTANT_NAMES: [&str; N_VARIABLES] = [$(stringify!($constant),)*];
+
+        pub const N_VARIABLES: usize = [$(stringify!($constant),)*].len();
+
+        pub static VARIABLES: [Variable; N_VARIABLES] = [$($row,)*];
+    };
 }
 
-pub const N_VARIABLES: usize = 76;
-
-pub static VARIABLES: [Variable; N_VARIABLES] = [
-    Variable {
+variable_table! {
+    TIME => Variable {
         name: "time",
         causality: Independent,
         variability: Continuous,
@@ -318,13 +263,13 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         description: "Simulation time",
     },
     // Inputs
-    input("i_ref", "A", Some("mA"), 0.0, "Coil current command (used when control_mode = current)"),
-    input("V_supply", "V", None, 72.0, "Driver supply: the output rails are at +V_supply and -V_supply")
+    I_REF => input("i_ref", "A", Some("mA"), 0.0, "Coil current command (used when control_mode = current)"),
+    V_SUPPLY => input("V_supply", "V", None, 72.0, "Driver supply: the output rails are at +V_supply and -V_supply")
         .range(Some(0.0), Some(1000.0)),
     // Outputs
-    output("i_coil", "A", Some("mA"), "Torque-motor coil current"),
-    output("u_driver", "V", None, "Driver output voltage across coil and sense resistor"),
-    Variable {
+    I_COIL => output("i_coil", "A", Some("mA"), "Torque-motor coil current"),
+    U_DRIVER => output("u_driver", "V", None, "Driver output voltage across coil and sense resistor"),
+    DRIVER_SATURATED => Variable {
         name: "driver_saturated",
         causality: Output,
         variability: Discrete,
@@ -337,11 +282,11 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         min_exclusive: false,
         description: "The driver output is at a supply rail",
     },
-    output("x_flapper", "m", Some("um"), "Armature/flapper displacement at the nozzles"),
-    output("x_spool", "m", Some("mm"), "Main spool displacement"),
-    output("Q_valve", "m3/s", Some("L/min"), "No-load valve flow K3*x_spool (the paper's hydraulic-amplifier load flow)"),
+    X_FLAPPER => output("x_flapper", "m", Some("um"), "Armature/flapper displacement at the nozzles"),
+    X_SPOOL => output("x_spool", "m", Some("mm"), "Main spool displacement"),
+    Q_VALVE => output("Q_valve", "m3/s", Some("L/min"), "No-load valve flow K3*x_spool (the paper's hydraulic-amplifier load flow)"),
     // Structural parameters
-    Variable {
+    DRIVER => Variable {
         name: "driver",
         causality: Parameter,
         variability: Fixed,
@@ -354,7 +299,7 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         min_exclusive: false,
         description: "Coil driver: 0 ideal_current, 1 voltage, 2 opamp_pi, 3 industrial, 4 hbridge_pid",
     },
-    Variable {
+    CONTROL_MODE => Variable {
         name: "control_mode",
         causality: Parameter,
         variability: Fixed,
@@ -368,47 +313,47 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         description: "Command source: 0 current (i_ref), 1 flow loop (Q_ref), 2 position loop (x_ref)",
     },
     // Driver
-    param("driver.Kp", Some("V/A"), 1.6e5, "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
+    DRIVER_KP => param("driver.Kp", Some("V/A"), 1.6e5, "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
         .non_negative(),
-    param("driver.Ki", Some("V/(A.s)"), 5.0e7, "Op-amp PI integral gain (= G*R_s/(R_f*C_f)); default Ki/Kp = R/L cancels the coil pole")
+    DRIVER_KI => param("driver.Ki", Some("V/(A.s)"), 5.0e7, "Op-amp PI integral gain (= G*R_s/(R_f*C_f)); default Ki/Kp = R/L cancels the coil pole")
         .non_negative(),
-    param("driver.V_drop", Some("V"), 0.0, "Output stage drop: the output saturates at +-(V_supply - V_drop)")
+    DRIVER_V_DROP => param("driver.V_drop", Some("V"), 0.0, "Output stage drop: the output saturates at +-(V_supply - V_drop)")
         .non_negative(),
-    param("driver.slew_rate", Some("V/s"), 2.0e7, "Op-amp output slew-rate limit (20 V/us)").positive(),
+    DRIVER_SLEW_RATE => param("driver.slew_rate", Some("V/s"), 2.0e7, "Op-amp output slew-rate limit (20 V/us)").positive(),
     // Coil
-    param("coil.L", Some("H"), 3.2, "Torque-motor coil (apparent) inductance").positive(),
-    param("coil.R", Some("Ohm"), 1000.0, "Torque-motor coil resistance").positive(),
-    param("coil.R_sense", Some("Ohm"), 0.0, "Current-sense resistor in series with the coil").non_negative(),
-    param("coil.K_b", Some("V.s/m"), 0.0, "Back-EMF constant on the flapper velocity (0: already in the apparent inductance)")
+    COIL_L => param("coil.L", Some("H"), 3.2, "Torque-motor coil (apparent) inductance").positive(),
+    COIL_R => param("coil.R", Some("Ohm"), 1000.0, "Torque-motor coil resistance").positive(),
+    COIL_R_SENSE => param("coil.R_sense", Some("Ohm"), 0.0, "Current-sense resistor in series with the coil").non_negative(),
+    COIL_K_B => param("coil.K_b", Some("V.s/m"), 0.0, "Back-EMF constant on the flapper velocity (0: already in the apparent inductance)")
         .non_negative(),
     // Valve (Moog 30 linear model)
-    param("valve.K1", Some("N.m/A"), 2.82462, "Torque-motor gain (0.025 in-lb/mA)").positive(),
-    param("valve.Kf", Some("N.m/m"), 511.545, "Net stiffness on flapper/armature (115 in-lb/in)").positive(),
-    param("valve.Kw", Some("N.m/m"), 74.2853, "Feedback wire stiffness (16.7 in-lb/in)").positive(),
-    param("valve.K2", Some("m2/s"), 0.0967740, "Hydraulic amplifier flow gain (150 in3/s/in)").positive(),
-    param("valve.K3", Some("m2/s"), 0.664515, "Spool/bushing flow gain (1030 in3/s/in)").positive(),
-    param("valve.A_s", Some("m2"), 1.67742e-5, "Spool end area (0.026 in2)").positive(),
-    param("valve.zeta", None, 0.4, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
-    param("valve.f_n", Some("Hz"), 814.0, "Natural frequency of the first stage").positive(),
+    VALVE_K1 => param("valve.K1", Some("N.m/A"), 2.82462, "Torque-motor gain (0.025 in-lb/mA)").positive(),
+    VALVE_KF => param("valve.Kf", Some("N.m/m"), 511.545, "Net stiffness on flapper/armature (115 in-lb/in)").positive(),
+    VALVE_KW => param("valve.Kw", Some("N.m/m"), 74.2853, "Feedback wire stiffness (16.7 in-lb/in)").positive(),
+    VALVE_K2 => param("valve.K2", Some("m2/s"), 0.0967740, "Hydraulic amplifier flow gain (150 in3/s/in)").positive(),
+    VALVE_K3 => param("valve.K3", Some("m2/s"), 0.664515, "Spool/bushing flow gain (1030 in3/s/in)").positive(),
+    VALVE_A_S => param("valve.A_s", Some("m2"), 1.67742e-5, "Spool end area (0.026 in2)").positive(),
+    VALVE_ZETA => param("valve.zeta", None, 0.4, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
+    VALVE_F_N => param("valve.f_n", Some("Hz"), 814.0, "Natural frequency of the first stage").positive(),
     // Industrial linear current amplifier (driver 3): a PI loop like the op-amp driver's
     // but with the slow gains of an off-the-shelf unit. L/Kp = 1.28 ms gives the My-502's
     // 5 ms (2 %) settling; Ki/Kp = R/L cancels the coil pole.
-    param("industrial.Kp", Some("V/A"), 2500.0, "Industrial amplifier proportional gain").non_negative(),
-    param("industrial.Ki", Some("V/(A.s)"), 781250.0, "Industrial amplifier integral gain").non_negative(),
-    param("industrial.slew_rate", Some("V/s"), 1.0e6, "Industrial amplifier output slew-rate limit (1 V/us)").positive(),
+    INDUSTRIAL_KP => param("industrial.Kp", Some("V/A"), 2500.0, "Industrial amplifier proportional gain").non_negative(),
+    INDUSTRIAL_KI => param("industrial.Ki", Some("V/(A.s)"), 781250.0, "Industrial amplifier integral gain").non_negative(),
+    INDUSTRIAL_SLEW_RATE => param("industrial.slew_rate", Some("V/s"), 1.0e6, "Industrial amplifier output slew-rate limit (1 V/us)").positive(),
     // H-bridge with PWM and a digital PI current loop (driver 4).
-    param("hbridge.f_pwm", Some("Hz"), 20000.0, "PWM switching frequency (bipolar, centre-aligned)")
+    HBRIDGE_F_PWM => param("hbridge.f_pwm", Some("Hz"), 20000.0, "PWM switching frequency (bipolar, centre-aligned)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
-    param("hbridge.f_sample", Some("Hz"), 20000.0, "Sampling rate of the digital PI current loop (one-sample computation delay)")
+    HBRIDGE_F_SAMPLE => param("hbridge.f_sample", Some("Hz"), 20000.0, "Sampling rate of the digital PI current loop (one-sample computation delay)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
     // With feed-forward and Ki/Kp = R/L, a 5 mA step at 12 V runs at 100 % duty to ~4.2 mA
     // (the supply limits the slope, as on the paper's bench), then the loop closes with
     // L/Kp = 0.36 ms: 1.9 ms settling of the period-averaged current.
-    param("hbridge.Kp", Some("V/A"), 9000.0, "Digital PI proportional gain").non_negative(),
-    param("hbridge.Ki", Some("V/(A.s)"), 2812500.0, "Digital PI integral gain").non_negative(),
-    Variable {
+    HBRIDGE_KP => param("hbridge.Kp", Some("V/A"), 9000.0, "Digital PI proportional gain").non_negative(),
+    HBRIDGE_KI => param("hbridge.Ki", Some("V/(A.s)"), 2812500.0, "Digital PI integral gain").non_negative(),
+    HBRIDGE_FEEDFORWARD => Variable {
         name: "hbridge.feedforward",
         causality: Parameter,
         variability: Fixed,
@@ -422,63 +367,63 @@ pub static VARIABLES: [Variable; N_VARIABLES] = [
         description: "Add the feed-forward voltage (R + R_sense)*i_cmd to the digital PI output",
     },
     // Optional valve travel limits (the paper's linear model has none).
-    param("valve.x_flapper_max", Some("m"), 0.0, "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
-    param("valve.x_spool_max", Some("m"), 0.0, "Spool travel limit, inelastic stop (0: none)").non_negative(),
+    VALVE_X_FLAPPER_MAX => param("valve.x_flapper_max", Some("m"), 0.0, "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
+    VALVE_X_SPOOL_MAX => param("valve.x_spool_max", Some("m"), 0.0, "Spool travel limit, inelastic stop (0: none)").non_negative(),
     // Cylinder side: inputs and outputs.
-    input("p_supply", "Pa", Some("bar"), 6.8948e6, "Hydraulic supply pressure, gauge (1000 psi: the valve's rated drop, so the no-load flow is K3*x_spool)")
+    P_SUPPLY => input("p_supply", "Pa", Some("bar"), 6.8948e6, "Hydraulic supply pressure, gauge (1000 psi: the valve's rated drop, so the no-load flow is K3*x_spool)")
         .range(Some(0.0), Some(1.0e8)),
-    input("F_ext", "N", None, 0.0, "External force on the rod, positive in the direction of +x (extension)"),
-    input("Q_ref", "m3/s", Some("L/min"), 0.0, "Valve flow command (used when control_mode = flow)"),
-    input("x_ref", "m", Some("mm"), 0.0, "Piston position command, 0 = mid-stroke (used when control_mode = position)"),
-    output("Q_A", "m3/s", Some("L/min"), "Actual flow into chamber A"),
-    output("Q_B", "m3/s", Some("L/min"), "Actual flow out of chamber B"),
-    output("p_A", "Pa", Some("bar"), "Chamber A (piston side) pressure, gauge"),
-    output("p_B", "Pa", Some("bar"), "Chamber B (rod side) pressure, gauge"),
-    output("x_piston", "m", Some("mm"), "Piston position, 0 = mid-stroke, positive = extension"),
-    output("v_piston", "m/s", None, "Piston velocity"),
-    output("F_hydraulic", "N", None, "Hydraulic force p_A*A_A - p_B*A_B"),
+    F_EXT => input("F_ext", "N", None, 0.0, "External force on the rod, positive in the direction of +x (extension)"),
+    Q_REF => input("Q_ref", "m3/s", Some("L/min"), 0.0, "Valve flow command (used when control_mode = flow)"),
+    X_REF => input("x_ref", "m", Some("mm"), 0.0, "Piston position command, 0 = mid-stroke (used when control_mode = position)"),
+    Q_A => output("Q_A", "m3/s", Some("L/min"), "Actual flow into chamber A"),
+    Q_B => output("Q_B", "m3/s", Some("L/min"), "Actual flow out of chamber B"),
+    P_A => output("p_A", "Pa", Some("bar"), "Chamber A (piston side) pressure, gauge"),
+    P_B => output("p_B", "Pa", Some("bar"), "Chamber B (rod side) pressure, gauge"),
+    X_PISTON => output("x_piston", "m", Some("mm"), "Piston position, 0 = mid-stroke, positive = extension"),
+    V_PISTON => output("v_piston", "m/s", None, "Piston velocity"),
+    F_HYDRAULIC => output("F_hydraulic", "N", None, "Hydraulic force p_A*A_A - p_B*A_B"),
     // Cylinder, load and hydraulic fluid.
-    param("cylinder.bore", Some("m"), 0.016, "Piston (bore) diameter").positive(),
-    param("cylinder.rod", Some("m"), 0.010, "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative(),
-    param("cylinder.stroke", Some("m"), 0.080, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2").positive(),
-    param("cylinder.mass", Some("kg"), 5.0, "Moving mass of piston, rod and load").positive(),
-    param("cylinder.beta", Some("Pa"), 1.0e9, "Effective bulk modulus of oil, hoses and walls").positive(),
-    param("cylinder.V_dead", Some("m3"), 2.0e-6, "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
-    param("cylinder.b_viscous", Some("N.s/m"), 200.0, "Viscous friction coefficient").non_negative(),
-    param("cylinder.F_coulomb", Some("N"), 20.0, "Coulomb friction force").non_negative(),
-    param("cylinder.F_static", Some("N"), 30.0, "Breakaway (static) friction force: peak of the Stribeck curve").non_negative(),
-    param("cylinder.v_stribeck", Some("m/s"), 0.01, "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive(),
-    param("cylinder.v_friction_smooth", Some("m/s"), 1.0e-4, "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive(),
-    param("cylinder.k_endstop", Some("N/m"), 1.0e8, "End-stop contact stiffness beyond +-stroke/2").positive(),
-    param("cylinder.c_endstop", Some("N.s/m"), 1.0e4, "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative(),
-    param("cylinder.C_leak", Some("m3/(s.Pa)"), 0.0, "Internal leakage coefficient across the piston, A to B").non_negative(),
-    param("cylinder.C_leak_external", Some("m3/(s.Pa)"), 0.0, "External leakage coefficient from each chamber to the drain at p_tank").non_negative(),
-    param("valve.dp_rated", Some("Pa"), 6.8948e6, "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").positive(),
-    param("valve.dp_laminar", Some("Pa"), 1.0e5, "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive(),
-    param("hydraulics.p_tank", Some("Pa"), 0.0, "Tank (return) pressure, gauge").range(Some(-1.01325e5), None),
-    param("hydraulics.p_cavitation", Some("Pa"), -0.9e5, "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it").range(Some(-1.01325e5), None),
-    param("hydraulics.dp_cavitation_band", Some("Pa"), 5.0e4, "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero").positive(),
+    CYLINDER_BORE => param("cylinder.bore", Some("m"), 0.016, "Piston (bore) diameter").positive(),
+    CYLINDER_ROD => param("cylinder.rod", Some("m"), 0.010, "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative(),
+    CYLINDER_STROKE => param("cylinder.stroke", Some("m"), 0.080, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2").positive(),
+    CYLINDER_MASS => param("cylinder.mass", Some("kg"), 5.0, "Moving mass of piston, rod and load").positive(),
+    CYLINDER_BETA => param("cylinder.beta", Some("Pa"), 1.0e9, "Effective bulk modulus of oil, hoses and walls").positive(),
+    CYLINDER_V_DEAD => param("cylinder.V_dead", Some("m3"), 2.0e-6, "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
+    CYLINDER_B_VISCOUS => param("cylinder.b_viscous", Some("N.s/m"), 200.0, "Viscous friction coefficient").non_negative(),
+    CYLINDER_F_COULOMB => param("cylinder.F_coulomb", Some("N"), 20.0, "Coulomb friction force").non_negative(),
+    CYLINDER_F_STATIC => param("cylinder.F_static", Some("N"), 30.0, "Breakaway (static) friction force: peak of the Stribeck curve").non_negative(),
+    CYLINDER_V_STRIBECK => param("cylinder.v_stribeck", Some("m/s"), 0.01, "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive(),
+    CYLINDER_V_FRICTION_SMOOTH => param("cylinder.v_friction_smooth", Some("m/s"), 1.0e-4, "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive(),
+    CYLINDER_K_ENDSTOP => param("cylinder.k_endstop", Some("N/m"), 1.0e8, "End-stop contact stiffness beyond +-stroke/2").positive(),
+    CYLINDER_C_ENDSTOP => param("cylinder.c_endstop", Some("N.s/m"), 1.0e4, "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative(),
+    CYLINDER_C_LEAK => param("cylinder.C_leak", Some("m3/(s.Pa)"), 0.0, "Internal leakage coefficient across the piston, A to B").non_negative(),
+    CYLINDER_C_LEAK_EXTERNAL => param("cylinder.C_leak_external", Some("m3/(s.Pa)"), 0.0, "External leakage coefficient from each chamber to the drain at p_tank").non_negative(),
+    VALVE_DP_RATED => param("valve.dp_rated", Some("Pa"), 6.8948e6, "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").positive(),
+    VALVE_DP_LAMINAR => param("valve.dp_laminar", Some("Pa"), 1.0e5, "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive(),
+    HYDRAULICS_P_TANK => param("hydraulics.p_tank", Some("Pa"), 0.0, "Tank (return) pressure, gauge").range(Some(-1.01325e5), None),
+    HYDRAULICS_P_CAVITATION => param("hydraulics.p_cavitation", Some("Pa"), -0.9e5, "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it").range(Some(-1.01325e5), None),
+    HYDRAULICS_DP_CAVITATION_BAND => param("hydraulics.dp_cavitation_band", Some("Pa"), 5.0e4, "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero").positive(),
     // Outer loops (control_mode 1 flow, 2 position): a digital PID producing the current command.
-    param("loop.f_sample", Some("Hz"), 20000.0, "Sampling rate of the outer flow/position PID (the command is held between samples)")
+    LOOP_F_SAMPLE => param("loop.f_sample", Some("Hz"), 20000.0, "Sampling rate of the outer flow/position PID (the command is held between samples)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
-    param("loop.i_max", Some("A"), 0.01, "Limit of the current command from the outer loops (rated current)").positive(),
+    LOOP_I_MAX => param("loop.i_max", Some("A"), 0.01, "Limit of the current command from the outer loops (rated current)").positive(),
     // Flow defaults, a gentle P on top of the exact feed-forward like the paper's untuned
     // loop: a 2e-4 m3/s step settles in 3.37 ms at 72 V and 6.08 ms at 10 V (180 %; paper
     // 3.3 ms, 6 ms, 181 %). With the feed-forward exact, P alone leaves no steady-state
     // error; an integral adds a slow tail (the area it collects in the transient) and winds
     // up against the 10 V supply limit, where the coil current can only rise with L/R.
-    param("flow.Kp", Some("A.s/m3"), 2.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)"),
-    param("flow.Ki", Some("A/m3"), 0.0, "Flow PID integral gain"),
-    param("flow.Kd", Some("A.s2/m3"), 0.0, "Flow PID derivative gain"),
+    FLOW_KP => param("flow.Kp", Some("A.s/m3"), 2.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)"),
+    FLOW_KI => param("flow.Ki", Some("A/m3"), 0.0, "Flow PID integral gain"),
+    FLOW_KD => param("flow.Kd", Some("A.s2/m3"), 0.0, "Flow PID derivative gain"),
     // Position defaults: P only (1 mA per mm). The valve-controlled cylinder integrates flow,
     // and a critically centred valve holds a constant load with zero flow only at null spool,
     // so P alone has zero steady-state error; Ki is for leakage or a valve offset. Derivative
     // action excites the hydraulic resonance at these gains.
-    param("position.Kp", Some("A/m"), 1.0, "Position PID proportional gain (on x_ref - x_piston)"),
-    param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain"),
-    param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain"),
-];
+    POSITION_KP => param("position.Kp", Some("A/m"), 1.0, "Position PID proportional gain (on x_ref - x_piston)"),
+    POSITION_KI => param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain"),
+    POSITION_KD => param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain"),
+}
 
 /// Index of the variable with this name.
 pub fn index_of(name: &str) -> Option<usize> {
@@ -530,17 +475,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn names_unique_and_constants_match_table() {
+    fn names_unique_and_every_constant_is_its_row() {
         for (i, a) in VARIABLES.iter().enumerate() {
             for b in &VARIABLES[i + 1..] {
                 assert_ne!(a.name, b.name);
             }
         }
-        assert_eq!(index_of("i_ref"), Some(vr::I_REF));
-        assert_eq!(index_of("Q_valve"), Some(vr::Q_VALVE));
-        assert_eq!(index_of("valve.f_n"), Some(vr::VALVE_F_N));
-        assert_eq!(index_of("coil.K_b"), Some(vr::COIL_K_B));
-        assert_eq!(index_of("driver"), Some(vr::DRIVER));
+        // The constant of each row is the variable's name in upper case with '.' -> '_'
+        // (so `vr::COIL_L` is "coil.L"), and its value is that row.
+        for (row, (var, constant)) in VARIABLES.iter().zip(CONSTANT_NAMES).enumerate() {
+            assert_eq!(var.name.to_uppercase().replace('.', "_"), constant, "row {row}");
+            assert_eq!(index_of(var.name), Some(row));
+        }
+        assert_eq!(VARIABLES[vr::COIL_K_B].name, "coil.K_b");
+        assert_eq!(VARIABLES[vr::POSITION_KD].name, "position.Kd");
+        assert_eq!(N_VARIABLES, 76);
     }
 
     #[test]

@@ -11,20 +11,24 @@ use ehsv_actuator::fmi_common::LOG_CATEGORIES;
 
 // ---------------------------------------------------------------- allocation counter
 
-/// Counts heap allocations per thread (tests run in parallel), to check that the
-/// real-time path (set inputs, step, get outputs) does not allocate.
+/// Counts heap allocations and live bytes per thread (tests run in parallel), to check
+/// that the real-time path (set inputs, step, get outputs) does not allocate and that
+/// FreeInstance gives back everything an instance took.
 struct Counting;
 
 thread_local! {
     static ALLOCATIONS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    static LIVE_BYTES: std::cell::Cell<isize> = const { std::cell::Cell::new(0) };
 }
 
 unsafe impl std::alloc::GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: std::alloc::Layout) -> *mut u8 {
         let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        let _ = LIVE_BYTES.try_with(|n| n.set(n.get() + layout.size() as isize));
         unsafe { std::alloc::System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: std::alloc::Layout) {
+        let _ = LIVE_BYTES.try_with(|n| n.set(n.get() - layout.size() as isize));
         unsafe { std::alloc::System.dealloc(ptr, layout) }
     }
 }
@@ -34,6 +38,10 @@ static GLOBAL: Counting = Counting;
 
 fn allocations() -> usize {
     ALLOCATIONS.with(|n| n.get())
+}
+
+fn live_bytes() -> isize {
+    LIVE_BYTES.with(|n| n.get())
 }
 
 // ---------------------------------------------------------------- FMI 2 tests
@@ -102,15 +110,24 @@ fn fmi2_happy_path() {
         assert!((out[0] - 5.0 * h).abs() < 1e-15);
 
         let mut sat = -1;
+        // The flag must read the driver's state, not just be 0 or 1 (which the type
+        // guarantees): i_ref = 10 mA was set during initialisation, so the op-amp starts
+        // in equilibrium inside its rails (false); a 20 mA reversal needs more than the
+        // 72 V supply across the coil, so one step later it sits on a rail (true).
         assert_eq!(fmi2GetBoolean(f.c, &(vr::DRIVER_SATURATED as u32), 1, &mut sat), OK);
-        assert!(sat == 0 || sat == 1);
+        assert_eq!(sat, fmi2False);
+        assert_eq!(f.set_real(vr::I_REF, -0.01), OK);
+        assert_eq!(f.step(5.0 * h, h), OK);
+        assert_eq!(fmi2GetBoolean(f.c, &(vr::DRIVER_SATURATED as u32), 1, &mut sat), OK);
+        assert_eq!(sat, fmi2True, "a 20 mA reversal drives the op-amp onto a rail");
+        assert_eq!(f.set_real(vr::I_REF, 0.01), OK);
         let mut driver = -1;
         assert_eq!(fmi2GetInteger(f.c, &(vr::DRIVER as u32), 1, &mut driver), OK);
         assert_eq!(driver, 2);
 
         let mut t = 0.0;
         assert_eq!(fmi2GetRealStatus(f.c, fmi2LastSuccessfulTime, &mut t), OK);
-        assert!((t - 5.0 * h).abs() < 1e-15);
+        assert!((t - 6.0 * h).abs() < 1e-15);
         let mut terminated = fmi2True;
         assert_eq!(fmi2GetBooleanStatus(f.c, fmi2Terminated, &mut terminated), OK);
         assert_eq!(terminated, fmi2False);
@@ -402,6 +419,17 @@ fn fmi2_fmu_state_round_trip() {
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
         assert!(s.is_null());
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK, "freeing NULL is fine");
+        // A stale copy of a freed state, or a state of another instance, is refused
+        // without being read (no double free, no use after free).
+        let mut stale = kept;
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut stale), ERROR, "double free");
+        assert_eq!(fmi2SetFMUstate(f.c, stale), ERROR, "use after free");
+        assert!(f.log.has(&["not one this instance made"]), "{}", f.log.dump());
+        let mut foreign: fmi2FMUstate = null_mut();
+        assert_eq!(fmi2GetFMUstate(g.c, &mut foreign), OK);
+        assert_eq!(fmi2SetFMUstate(f.c, foreign), ERROR, "a state of instance g set in f");
+        assert_eq!(fmi2FreeFMUstate(f.c, &mut foreign), ERROR, "freed through f");
+        assert_eq!(fmi2FreeFMUstate(g.c, &mut foreign), OK, "its own instance frees it");
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s2), OK);
         assert_eq!(fmi2FreeFMUstate(f.c, null_mut()), OK);
 
@@ -433,7 +461,7 @@ fn fmi2_corrupted_state_bytes_are_refused() {
         // A pointer that is not an FMU state of ours.
         let mut junk = [0u64; 64];
         assert_eq!(fmi2SetFMUstate(f.c, junk.as_mut_ptr().cast()), ERROR);
-        assert!(f.log.has(&["not an EhsvActuator FMU state"]));
+        assert!(f.log.has(&["not one this instance made"]), "{}", f.log.dump());
         assert_eq!(fmi2FreeFMUstate(f.c, &mut s), OK);
         // The instance still works.
         assert_eq!(f.step(1e-4, 1e-4), OK);
@@ -594,6 +622,7 @@ fn fmi3_happy_path_and_do_step_out_flags() {
         assert_eq!(driver, 2);
         let mut sat = true;
         assert_eq!(fmi3GetBoolean(f.i, &(vr::DRIVER_SATURATED as u32), 1, &mut sat, 1), OK);
+        assert!(!sat, "in equilibrium at the 10 mA set during initialisation: inside the rails");
         assert_eq!(fmi3Terminate(f.i), OK);
         assert_eq!(f.get(vr::X_SPOOL).0, OK);
         assert_eq!(f.step(0.5 + 5.0 * h, h).0, ERROR);
@@ -860,4 +889,148 @@ fn step_loop_does_not_allocate() {
         }
     }
     assert_eq!(allocations() - before, 0, "the step loop allocated");
+}
+
+// ---------------------------------------------------------------- FMU states and FreeInstance
+
+/// FreeInstance frees every FMU state the instance made and the importer did not free
+/// (FMI 2.0.4 2.1.8, FMI 3.0 fmi3FreeInstance): 3000 instances, each left holding one
+/// state, give back every byte; a state freed explicitly before is not freed twice.
+#[test]
+fn free_instance_frees_the_fmu_states_it_holds() {
+    let per_instance = |version: &str, keep_one_freed: bool| {
+        let before = live_bytes();
+        for k in 0..3000 {
+            if version == "FMI 2" {
+                let f = Fmu2::initialized("leak2");
+                let (mut s, mut freed) = (null_mut(), null_mut());
+                unsafe {
+                    assert_eq!(fmi2GetFMUstate(f.c, &mut s), OK);
+                    if keep_one_freed {
+                        assert_eq!(fmi2GetFMUstate(f.c, &mut freed), OK);
+                        assert_eq!(fmi2FreeFMUstate(f.c, &mut freed), OK);
+                    }
+                }
+                assert!(!s.is_null(), "instance {k}");
+            } else {
+                let f = Fmu3::initialized("leak3", None);
+                let (mut s, mut freed) = (null_mut(), null_mut());
+                unsafe {
+                    assert_eq!(fmi3GetFMUState(f.i, &mut s), OK);
+                    if keep_one_freed {
+                        assert_eq!(fmi3GetFMUState(f.i, &mut freed), OK);
+                        assert_eq!(fmi3FreeFMUState(f.i, &mut freed), OK);
+                    }
+                }
+                assert!(!s.is_null(), "instance {k}");
+            } // Drop: FreeInstance with the state still held.
+        }
+        let grown = live_bytes() - before;
+        println!(
+            "{version}: 3000 instances each freed holding one FMU state{}: heap grew by {grown} bytes",
+            if keep_one_freed { " (and one freed before)" } else { "" }
+        );
+        grown
+    };
+    for version in ["FMI 2", "FMI 3"] {
+        for keep_one_freed in [false, true] {
+            assert_eq!(per_instance(version, keep_one_freed), 0, "{version}: states leaked");
+        }
+    }
+}
+
+// ---------------------------------------------------------------- communication-point tolerance
+
+/// The FMU accepts a communication point 4 ulps of t (rounding of the importer's t + h)
+/// plus a millionth of the step away from its own time, never more: at t = 1e6 s a point
+/// 0.9 ms behind (which the old |t|-relative tolerance of 1 ms accepted, letting time run
+/// backwards) is refused, and so is twice the tolerance (2 us at an epoch start of 1.7e9 s,
+/// where the old tolerance was 1.7 s).
+#[test]
+fn communication_point_tolerance_is_tied_to_the_step_and_ulps_of_t() {
+    for start in [0.0, 1e6, 1.7e9] {
+        for version in [2, 3] {
+            let h = 1e-3;
+            let (status, time, log) = run_from(version, start, &mut |step| {
+                // Correct callers: accumulated t += h, then t0 + k h from there (a few
+                // ulps away from the FMU's own current + step).
+                let mut t = start;
+                for k in 0..200 {
+                    assert_eq!(step(t, h), OK, "t += h at step {k} from {start}");
+                    t += h;
+                }
+                let t0 = t;
+                for k in 0..200 {
+                    let t = t0 + k as f64 * h;
+                    assert_eq!(step(t, h), OK, "t0 + k h at step {k} from {t0}");
+                }
+                let now = t0 + 200.0 * h;
+                // Behind or ahead by 0.9 ms, or by twice the tolerance: refused.
+                let twice = 8.0 * ulp(now) + 2e-6 * h;
+                for offset in [-0.9e-3, 0.9e-3, -twice, twice] {
+                    assert_eq!(step(now + offset, h), ERROR, "{offset} s off at t = {now}");
+                }
+                step(now, h)
+            });
+            assert_eq!(status, OK, "FMI {version} from {start}: {log}");
+            let expected = time_after(start, h);
+            assert!(
+                (time - expected).abs() <= 4.0 * ulp(expected),
+                "FMI {version} from {start}: time {time}, expected {expected}"
+            );
+            assert!(log.contains("currentCommunicationPoint"), "{log}");
+        }
+    }
+}
+
+/// The FMU time after the run above: 200 accumulated steps, 200 from that origin, one more.
+fn time_after(start: f64, h: f64) -> f64 {
+    let t0 = (0..200).fold(start, |t, _| t + h);
+    t0 + 200.0 * h + h
+}
+
+fn ulp(x: f64) -> f64 {
+    f64::from_bits(x.abs().to_bits() + 1) - x.abs()
+}
+
+type Stepper<'a> = dyn FnMut(f64, f64) -> Status + 'a;
+
+/// Initialises an instance of FMI `version` at `start`, runs `steps` with a doStep
+/// closure that also checks time never runs backwards; returns its status, the final
+/// FMU time and the log.
+fn run_from(
+    version: u32,
+    start: f64,
+    steps: &mut dyn FnMut(&mut Stepper) -> Status,
+) -> (Status, f64, String) {
+    if version == 2 {
+        let f = Fmu2::new("tolerance2");
+        unsafe {
+            assert_eq!(fmi2SetupExperiment(f.c, 0, 0.0, start, 0, 0.0), OK);
+            assert_eq!(fmi2EnterInitializationMode(f.c), OK);
+            assert_eq!(fmi2ExitInitializationMode(f.c), OK);
+        }
+        let mut last = f.time();
+        let status = steps(&mut |t, h| {
+            let s = f.step(t, h);
+            assert!(f.time() >= last, "time ran backwards: {} after {last}", f.time());
+            last = f.time();
+            s
+        });
+        (status, f.time(), f.log.dump())
+    } else {
+        let f = Fmu3::new("tolerance3");
+        unsafe {
+            assert_eq!(fmi3EnterInitializationMode(f.i, false, 0.0, start, false, 0.0), OK);
+            assert_eq!(fmi3ExitInitializationMode(f.i), OK);
+        }
+        let mut last = f.get(vr::TIME).1;
+        let status = steps(&mut |t, h| {
+            let (s, _, time) = f.step(t, h);
+            assert!(time >= last, "time ran backwards: {time} after {last}");
+            last = time;
+            s
+        });
+        (status, f.get(vr::TIME).1, f.log.dump())
+    }
 }

@@ -29,6 +29,9 @@ both!(
     bad_parameters_are_refused_before_initialisation,
     huge_steps_return_in_bounded_time,
     extreme_finite_parameters_return_in_bounded_time,
+    state_restores_the_fmi_mode_and_stop_time,
+    a_failed_step_leaves_only_reset_restore_and_getters,
+    a_refused_call_leaves_the_instance_in_its_state,
 );
 
 const H: f64 = 1e-4;
@@ -110,8 +113,20 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
     drive(&f, 0, 30);
     let bytes = f.save();
     let reference = drive(&f, 30, 20);
-    let (magic, body) = (&bytes[..8], &bytes[16..bytes.len() - 8]);
-    assert_eq!(&bytes[..], &frame(magic.try_into().unwrap(), body)[..], "the test knows the frame");
+    // FMU state: frame(mode | stop defined | stop time | model frame(model body)).
+    let unframe = |b: &[u8]| -> ([u8; 8], Vec<u8>) {
+        (b[..8].try_into().unwrap(), b[16..b.len() - 8].to_vec())
+    };
+    let (magic, body) = unframe(&bytes);
+    assert_eq!(bytes, frame(&magic, &body), "the test knows the frame");
+    let (head, model) = body.split_at(10);
+    let (model_magic, model_body) = unframe(model);
+    assert_eq!(model, frame(&model_magic, &model_body), "... and the model's frame inside");
+    assert_eq!(head, [2, 0, 0, 0, 0, 0, 0, 0, 0, 0], "Step Mode, no stop time");
+    let state = |head: &[u8], model_body: &[u8]| {
+        frame(&magic, &[head, &frame(&model_magic, model_body)].concat())
+    };
+    assert_eq!(state(head, &model_body), bytes);
 
     let refused = |bad: &[u8], what: String| {
         let before = f.log().lines().len();
@@ -136,8 +151,9 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
     }
     refused(&[&bytes[..], &[0]].concat(), "one trailing byte".into());
     // Foreign: other format versions, random bytes, and well-formed frames whose contents are wrong.
-    refused(&frame(b"EHSVST02", body), "format version 02".into());
-    refused(&frame(b"EHSVST00", body), "format version 00".into());
+    refused(&frame(b"EHSVFS02", &body), "format version 02".into());
+    refused(&frame(b"EHSVFS00", &body), "format version 00".into());
+    refused(model, "a bare model frame (the format before states carried the FMI mode)".into());
     let mut seed = 0x9e3779b97f4a7c15u64;
     for len in [1, 7, 24, 25, bytes.len() - 1, bytes.len(), bytes.len() + 8, 4096] {
         let random: Vec<u8> = (0..len)
@@ -149,31 +165,41 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
             })
             .collect();
         refused(&random, format!("{len} random bytes"));
-        refused(&[magic, &random].concat(), format!("magic + {len} random bytes"));
+        refused(&[&magic[..], &random].concat(), format!("magic + {len} random bytes"));
     }
-    refused(
-        &frame(magic.try_into().unwrap(), &body[..body.len() - 1]),
-        "a frame around a short body".into(),
-    );
+    refused(&frame(&magic, &body[..body.len() - 1]), "a frame around a short body".into());
+    refused(&frame(&magic, head), "a frame around the header alone".into());
+    // Well-formed frames with an FMI mode or stop time the FMU never writes.
+    for (bad_head, what, needle) in [
+        ([5, 0, 0, 0, 0, 0, 0, 0, 0, 0], "mode code 5", "unknown FMI mode code 5"),
+        ([0xff, 0, 0, 0, 0, 0, 0, 0, 0, 0], "mode code 255", "unknown FMI mode code 255"),
+        ([4, 0, 0, 0, 0, 0, 0, 0, 0, 0], "mode Error", "unknown FMI mode code 4"),
+        ([0, 0, 0, 0, 0, 0, 0, 0, 0, 0], "mode Instantiated", "does not match its model"),
+        ([1, 0, 0, 0, 0, 0, 0, 0, 0, 0], "mode InitializationMode", "does not match its model"),
+        ([2, 2, 0, 0, 0, 0, 0, 0, 0, 0], "stop flag 2", "invalid stop time"),
+        ([2, 0, 0, 0, 0, 0, 0, 0, 0xf0, 0x3f], "stop time without flag", "invalid stop time"),
+        ([2, 1, 0, 0, 0, 0, 0, 0, 0xf8, 0x7f], "stop time NaN", "invalid stop time"),
+    ] {
+        refused(&state(&bad_head, &model_body), what.into());
+        assert!(f.log().has(&[needle]), "{what}: {}", f.log().dump());
+    }
     // Well-formed frames holding values the FMU would never accept from a setter.
     let value_at = |r: usize| 4 + 1 + 8 + 8 * r; // n_variables u32 | initialized u8 | time f64 | values
+    let model_body = &model_body[..];
     for (r, v) in [
         (vr::I_REF, f64::NAN),
         (vr::V_SUPPLY, f64::INFINITY),
         (vr::COIL_L, -1.0),
         (vr::COIL_R, f64::NAN),
     ] {
-        let mut b = body.to_vec();
+        let mut b = model_body.to_vec();
         b[value_at(r)..value_at(r) + 8].copy_from_slice(&v.to_le_bytes());
-        refused(
-            &frame(magic.try_into().unwrap(), &b),
-            format!("{} = {v} in a valid frame", VARIABLES[r].name),
-        );
+        refused(&state(head, &b), format!("{} = {v} in a valid frame", VARIABLES[r].name));
         assert!(f.log().has(&[VARIABLES[r].name]), "the refusal names {}", VARIABLES[r].name);
     }
-    let mut b = body.to_vec();
+    let mut b = model_body.to_vec();
     b[5..13].copy_from_slice(&f64::NAN.to_le_bytes());
-    refused(&frame(magic.try_into().unwrap(), &b), "time = NaN in a valid frame".into());
+    refused(&state(head, &b), "time = NaN in a valid frame".into());
 
     // None of that touched the instance or the good bytes.
     assert_eq!(f.restore(&bytes), OK);
@@ -198,12 +224,17 @@ fn in_every_state<F: Api>() -> Vec<(&'static str, F)> {
     let terminated = F::initialized("terminated");
     drive(&terminated, 0, 5);
     assert_eq!(terminated.terminate(), OK);
+    let failed = F::create("failed");
+    assert_eq!(failed.set_enum(vr::DRIVER, hbridge_pid()), OK);
+    assert_eq!(failed.init(None), OK);
+    assert_eq!(failed.step(0.0, 1e3), ERROR, "too many PWM periods: the step fails");
     vec![
         ("Instantiated", instantiated),
         ("InitializationMode", init_mode),
         ("StepMode", stepping),
         ("StepMode after an Error", after_error),
         ("Terminated", terminated),
+        ("Error", failed),
     ]
 }
 
@@ -560,9 +591,16 @@ fn huge_steps_return_in_bounded_time<F: Api>() {
                 F::VERSION
             );
             assert!(took < Duration::from_secs(2), "{name}: a {h} s step took {took:?}");
-            // Whatever the answer, the instance goes on.
+            // Whatever the answer, the instance goes on: after a failed step (Error
+            // state, the model as before the call) through Reset.
             let t = f.get(vr::TIME).1;
             assert!(status == OK || (status == ERROR && t == 0.0), "{name}: {status:?} at t = {t}");
+            if status == ERROR {
+                assert!(f.log().has(&["Error state"]), "{}", f.log().dump());
+                assert_eq!(f.step(t, 1e-3), ERROR, "{name}: doStep in the Error state");
+                assert_eq!(f.reset(), OK);
+                assert_eq!(f.init(None), OK);
+            }
             assert_eq!(f.step(t, 1e-3), OK, "{}", f.log().dump());
             assert!(f.snapshot().iter().all(|&b| f64::from_bits(b).is_finite()));
         }
@@ -638,4 +676,116 @@ fn eight_parallel_instances_match_sequential_runs_bit_for_bit() {
         assert!(s == p, "instance {k} differs between the sequential and the parallel run");
     }
     assert!(sequential[0] != sequential[1], "the eight scenarios differ");
+}
+
+// ---------------------------------------------------------------- FMU state carries the FMI mode
+
+/// A state holds the FMI mode and the stop time with the model (FMI 2.0.4 2.1.8, FMI 3.0:
+/// the state is everything needed to continue): restoring it puts the instance back in the
+/// mode it was taken in, whatever mode the instance is in now.
+fn state_restores_the_fmi_mode_and_stop_time<F: Api>() {
+    // Taken while Instantiated, set in Step Mode: the instance is Instantiated again.
+    let f = F::create("mode");
+    assert_eq!(f.set(vr::I_REF, 0.002), OK);
+    let instantiated = f.save();
+    assert_eq!(f.init(Some(0.5)), OK);
+    drive(&f, 0, 5);
+    assert_eq!(f.restore(&instantiated), OK, "{}", f.log().dump());
+    assert_eq!(f.step(5.0 * H, H), ERROR, "no doStep before initialisation");
+    assert_error_logged(
+        &f,
+        "doStep after restoring Instantiated",
+        &["not allowed", "Instantiated"],
+    );
+    assert_eq!(f.init(None), OK, "initialisation from the restored mode: {}", f.log().dump());
+    assert_eq!(f.get(vr::I_REF).1, 0.002);
+    assert_eq!(f.step(0.0, 1.0), OK, "no stop time: the restored state had none");
+
+    // Taken in Step Mode with stopTime 0.5, set after Reset: continues with doStep.
+    let g = F::create("step_mode");
+    assert_eq!(g.init(Some(0.5)), OK);
+    drive(&g, 0, 12);
+    let stepping = g.save();
+    let reference = drive(&g, 12, 10);
+    assert_eq!(g.reset(), OK);
+    assert_eq!(g.restore(&stepping), OK, "{}", g.log().dump());
+    assert_eq!(drive(&g, 12, 10), reference, "a Step Mode state continues after Reset");
+    assert_eq!(g.step(22.0 * H, 1.0), ERROR, "the stop time came back with the state");
+    assert_error_logged(&g, "step past the restored stopTime", &["stopTime 0.5"]);
+    // ... and in an instance that is still Instantiated, and one that is Terminated.
+    for (what, h) in [("instantiated", F::create("fresh")), ("terminated", F::initialized("term"))]
+    {
+        if what == "terminated" {
+            assert_eq!(h.terminate(), OK);
+        }
+        assert_eq!(h.restore(&stepping), OK, "{what}: {}", h.log().dump());
+        assert_eq!(drive(&h, 12, 10), reference, "{what}");
+    }
+    // A Terminated state restores Terminated: getters work, doStep does not.
+    assert_eq!(g.terminate(), OK);
+    let terminated = g.save();
+    let k = F::initialized("to_terminated");
+    assert_eq!(k.restore(&terminated), OK);
+    assert_eq!(k.step(k.get(vr::TIME).1, H), ERROR);
+    assert_error_logged(&k, "doStep after restoring Terminated", &["Terminated"]);
+    assert_eq!(k.reset(), OK);
+}
+
+// ---------------------------------------------------------------- Error state
+
+/// The H-bridge PID driver refuses a step holding more PWM instants than it will compute
+/// in one call: the step computation fails after the call was accepted. The instance is
+/// then in the Error state (FMI 2.0.4 2.1.3, FMI 3.0 2.2.3: only SetFMUState, Reset and
+/// FreeInstance are defined after such an Error), getters still answer for diagnostics.
+fn a_failed_step_leaves_only_reset_restore_and_getters<F: Api>() {
+    let f = F::create("failing");
+    assert_eq!(f.set_enum(vr::DRIVER, hbridge_pid()), OK);
+    assert_eq!(f.init(None), OK);
+    drive(&f, 0, 3);
+    let good = f.save();
+    let before = f.snapshot();
+    assert_eq!(f.step(3.0 * H, 1e3), ERROR);
+    assert_error_logged(&f, "the failed step", &["PWM", "Error state"]);
+    assert_eq!(f.snapshot(), before, "getters show the last good communication point");
+    for (what, status) in [
+        ("doStep", f.step(3.0 * H, H)),
+        ("a setter", f.set(vr::I_REF, 0.001)),
+        ("Terminate", f.terminate()),
+        ("ExitInitializationMode", f.exit_init()),
+    ] {
+        assert_eq!(status, ERROR, "{what} in the Error state");
+        assert_error_logged(&f, what, &["not allowed in state Error"]);
+    }
+    assert_eq!(f.set_logging(true, &["logEvents"]), OK, "logging settings stay changeable");
+    // Restoring a state taken before the Error leaves the Error state.
+    assert_eq!(f.restore(&good), OK, "{}", f.log().dump());
+    let g = F::create("replay");
+    assert_eq!(g.set_enum(vr::DRIVER, hbridge_pid()), OK);
+    assert_eq!(g.init(None), OK);
+    drive(&g, 0, 3);
+    assert_eq!(drive(&f, 3, 10), drive(&g, 3, 10), "after SetFMUState the run goes on");
+    // Reset leaves it too.
+    assert_eq!(f.step(13.0 * H, 1e3), ERROR);
+    assert_eq!(f.reset(), OK);
+    assert_eq!(f.snapshot(), F::create("fresh").snapshot());
+    assert_eq!(f.init(None), OK);
+    assert_eq!(f.step(0.0, H), OK);
+}
+
+/// A refused call (bad argument, illegal call sequence) changes nothing: the instance
+/// stays in its state and the next correct call succeeds (tested case by case in
+/// `bad_input_in_step_mode_is_an_error_naming_the_cause`); here: not the Error state.
+fn a_refused_call_leaves_the_instance_in_its_state<F: Api>() {
+    let f = F::initialized("refused");
+    drive(&f, 0, 2);
+    assert_eq!(f.step(0.0, H), ERROR, "communication point behind");
+    assert_eq!(f.terminate(), OK, "still in Step Mode");
+    assert_eq!(f.exit_init(), ERROR, "illegal call sequence");
+    assert_error_logged(&f, "ExitInitializationMode", &["not allowed in state Terminated"]);
+    assert_eq!(f.get(vr::I_COIL).0, OK);
+}
+
+fn hbridge_pid() -> i64 {
+    let drivers = ENUMERATIONS.iter().find(|e| e.name == "DriverType").expect("DriverType");
+    drivers.items.iter().find(|i| i.1 == "hbridge_pid").expect("hbridge_pid").0
 }

@@ -5,16 +5,12 @@ build-fmu`); nothing here builds anything. Every FMU test runs for both archives
 (fmi2 and fmi3). Expensive simulations are cached for the session so that several
 tests can look at one run.
 """
+
 import functools
-import sys
-from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "cosim-examples"))
-
-import ehsv_scenarios as ehsv  # noqa: E402  (shared helpers: one place for each fact)
+import ehsv
 
 
 @pytest.fixture(scope="module", params=ehsv.VERSIONS)
@@ -31,7 +27,7 @@ def fmu(version):
     return ehsv.fmu_path(version)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _cached_run(version, driver, i_step, h, t_stop, outputs):
     result = ehsv.run_step(version, driver, i_step, h=h, t_stop=t_stop, outputs=outputs)
     for a in result.values():

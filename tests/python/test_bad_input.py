@@ -1,17 +1,18 @@
 """Bad input gives an Error status with a log message naming the cause, and no crash.
 
-Each case runs in a child Python process (ehsv_scenarios.py bad-input ...), so a crash of
+Each case runs in a child Python process (python -m ehsv.bad_input ...), so a crash of
 the FMU shows as a failed test instead of killing pytest. fmpy raises FMICallException
 for a status of Error or Fatal; its .status tells which (3 = Error). The FMU is instantiated
 with loggingOn = false: an FMU must report errors through the logger even then.
 """
+
 import json
 import subprocess
 import sys
 
 import pytest
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 FMI_ERROR = 3
 
@@ -26,10 +27,12 @@ EXPECTED = {
 @pytest.mark.parametrize("case", ehsv.BAD_INPUT_CASES)
 def test_bad_input_is_an_error_with_a_log_message(version, case):
     proc = subprocess.run(
-        [sys.executable, str(ehsv.REPO / "cosim-examples" / "ehsv_scenarios.py"), "bad-input", version, case],
-        capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, (f"child process ended with {proc.returncode} (a crash is negative)\n"
-                                  f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}")
+        [sys.executable, "-m", "ehsv.bad_input", version, case], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, (
+        f"child process ended with {proc.returncode} (a crash is negative)\n"
+        f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
+    )
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     assert result["exception"] is not None, f"no Error status: {result}"
     assert result["status"] == FMI_ERROR, f"expected fmiError (3): {result}"
@@ -37,6 +40,7 @@ def test_bad_input_is_an_error_with_a_log_message(version, case):
     assert errors, f"no log message with status Error; log: {result['log']}"
     text = "\n".join(errors).lower()
     for alternatives in EXPECTED[case]:
-        assert any(word.lower() in text for word in alternatives), \
+        assert any(word.lower() in text for word in alternatives), (
             f"Error log does not name the cause ({alternatives}): {errors}"
+        )
     assert result["freed"]

@@ -1,13 +1,14 @@
 """The capability flags in each modelDescription.xml say what the binary does: every
 capability declared is there, and every function behind a flag declared false (or an
 interface not declared) answers Error with a log line saying it is not supported."""
+
 import xml.etree.ElementTree as ET
 import zipfile
 
 import pytest
 from fmpy.fmi1 import FMICallException
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 
 def declared(version):
@@ -15,7 +16,9 @@ def declared(version):
     with zipfile.ZipFile(ehsv.fmu_path(version)) as z:
         root = ET.fromstring(z.read("modelDescription.xml"))
     flags = {k: v for k, v in root.find("CoSimulation").attrib.items()}
-    return flags, [child.tag for child in root if child.tag in ("ModelExchange", "CoSimulation", "ScheduledExecution")]
+    return flags, [
+        child.tag for child in root if child.tag in ("ModelExchange", "CoSimulation", "ScheduledExecution")
+    ]
 
 
 def started(version):

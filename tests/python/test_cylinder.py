@@ -1,22 +1,23 @@
 """The cylinder with its load and the outer loops through fmpy, both archives: the paper's
-flow-loop figures (MODEL.md rows 8, 9, 11), the physics checks (steady velocity, volume
+flow-loop figures (rows 8, 9, 11 of the README's figures table), the physics checks (steady velocity, volume
 balance, end stops, position loop, cavitation floor), a documented fast end-stop impact,
 and independence of the communication step.
 
 The scenarios are those of fmu-src/tests/cylinder.rs (the same checks through the Model
-API), run through ehsv_scenarios (cosim-examples/ehsv_scenarios.py): ``flow_step`` is
+API), run through the ehsv package (cosim-examples/ehsv/scenarios.py): ``flow_step`` is
 what cosim-examples/flow_loop.py prints, ``run_scenario`` sets parameters and initial
 inputs before initialisation (the model starts at mid-stroke in equilibrium) and changes
 inputs before the doStep that starts at t_change.
 """
+
 import math
 
 import numpy as np
 import pytest
 
-import ehsv_scenarios as ehsv
+import ehsv
 
-CYL = ehsv.CYLINDER
+CYL = ehsv.Cylinder.from_params()
 P_S = ehsv.INPUTS["p_supply"][1]
 HALF = CYL.stroke / 2
 STATE = ("p_A", "p_B", "x_piston", "v_piston")
@@ -36,10 +37,13 @@ def flow_runs(version):
 # Rows 8, 9: the flow loop with a high- and a low-voltage supply (paper Fig. 10/11)
 # --------------------------------------------------------------------------------------
 
+
 def test_row8_flow_step_72V_settles_within_3_6_ms(flow_runs):
     spec = ehsv.PAPER_FLOW[0]
     res = flow_runs[spec.V_supply]
-    assert res.settling <= spec.band[1], f"row 8: Q_valve 5 % settling {_ms(res.settling)}\n{ehsv.flow_table(flow_runs)}"
+    assert res.settling <= spec.band[1], (
+        f"row 8: Q_valve 5 % settling {_ms(res.settling)}\n{ehsv.flow_table(flow_runs)}"
+    )
     # teeth: the flow did step and ends at the command (PI, no steady-state error)
     assert res.run["Q_valve"][-1] == pytest.approx(ehsv.FLOW_STEP, rel=1e-3)
     assert res.settling > 0.5e-3
@@ -73,14 +77,20 @@ def test_flow_step_does_not_depend_on_the_communication_step(flow_runs, version)
         coarse = ehsv.flow_step(version, spec.V_supply, 1e-4).run
         idx = np.arange(len(coarse["time"])) * 10
         assert np.allclose(fine["time"][idx], coarse["time"], rtol=1e-12, atol=0)
-        scales = {"i_coil": ehsv.FLOW_STEP / ehsv.FLOW_GAIN, "u_driver": spec.V_supply,
-                  "x_spool": ehsv.FLOW_STEP / ehsv.NOMINAL["valve.K3"], "Q_valve": ehsv.FLOW_STEP}
+        scales = {
+            "i_coil": ehsv.FLOW_STEP / ehsv.flow_gain(),
+            "u_driver": spec.V_supply,
+            "x_spool": ehsv.FLOW_STEP / ehsv.NOMINAL["valve.K3"],
+            "Q_valve": ehsv.FLOW_STEP,
+        }
         for name in ehsv.HYDRAULIC_OUTPUTS:
             scale = scales.get(name) or float(np.ptp(fine[name]))
             diff = np.abs(fine[name][idx] - coarse[name])
             k = int(np.argmax(diff))
-            assert diff[k] <= 1e-6 * scale, (f"{spec.V_supply:g} V, {name}: |h=1e-5 - h=1e-4| = {diff[k]:.3e} "
-                                             f"at t = {coarse['time'][k] * 1e3:.2f} ms, tolerance {1e-6 * scale:.3e}")
+            assert diff[k] <= 1e-6 * scale, (
+                f"{spec.V_supply:g} V, {name}: |h=1e-5 - h=1e-4| = {diff[k]:.3e} "
+                f"at t = {coarse['time'][k] * 1e3:.2f} ms, tolerance {1e-6 * scale:.3e}"
+            )
         assert np.ptp(fine["x_piston"]) > 0.02, "the piston moved (teeth)"
 
 
@@ -88,18 +98,23 @@ def test_flow_step_does_not_depend_on_the_communication_step(flow_runs, version)
 # Row 11 and the physics: steady velocity, volume balance
 # --------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def steady_flow(version):
     """control_mode 1, Q_ref 0 -> 2e-5 m3/s (a modest flow: the piston stays clear of the
     stop for the whole 0.1 s), F_ext 0, outputs every 10 us."""
-    return ehsv.run_scenario(version, h=1e-5, t_stop=0.1,
-                             params={"control_mode": ehsv.CONTROL_MODES["flow"]},
-                             changes={"Q_ref": 2e-5})
+    return ehsv.run_scenario(
+        version,
+        h=1e-5,
+        t_stop=0.1,
+        params={"control_mode": ehsv.CONTROL_MODES["flow"]},
+        changes={"Q_ref": 2e-5},
+    )
 
 
 def test_row11_steady_piston_velocity_is_port_flow_over_area(steady_flow):
     r = steady_flow
-    tail = r["time"] >= 0.05          # steady: the loop settled in a few ms
+    tail = r["time"] >= 0.05  # steady: the loop settled in a few ms
     v, q_a, q_b = r["v_piston"][tail], r["Q_A"][tail], r["Q_B"][tail]
     assert r["x_piston"][-1] < HALF - 1e-3, "clear of the end stop"
     assert np.min(v) > 0.1, "the piston moves"
@@ -113,7 +128,7 @@ def test_row11_steady_piston_velocity_is_port_flow_over_area(steady_flow):
 
 
 def test_row11_volume_balance_of_chamber_a(steady_flow):
-    """integral Q_A dt = A_A dx + V_A/beta dp_A within 1 % (the brief's end-point form,
+    """integral Q_A dt = A_A dx + V_A/beta dp_A within 1 % (the end-point form,
     V_A = V_dead + A_A (x + S/2) at the end); the path form (V_A/beta dp_A integrated
     along the run) is the exact balance without leakage and must hold far tighter."""
     b = ehsv.volume_balance(steady_flow)
@@ -127,14 +142,17 @@ def test_row11_volume_balance_of_chamber_a(steady_flow):
 # End stops
 # --------------------------------------------------------------------------------------
 
+
 def test_slow_approach_to_end_stop_holds_rod_and_pressure_below_supply(version):
     """i_ref 1 mA (~0.15 m/s at the stop), 0.5 s at 1e-4 s: the rod stays within
     S/2 + 0.1 mm, p_A approaches p_S but never exceeds it, and the rod ends pressed in by
     the stall force: penetration p_S A_A / k_endstop (13.9 um), B at tank."""
     r = ehsv.run_scenario(version, h=1e-4, t_stop=0.5, changes={"i_ref": 1e-3})
     x, p_a = r["x_piston"], r["p_A"]
-    msg = (f"x max S/2 + {(x.max() - HALF) * 1e6:.3f} um, p_A max p_S {p_a.max() - P_S:+.3e} Pa, "
-           f"final p_A {p_a[-1]:.6e} Pa")
+    msg = (
+        f"x max S/2 + {(x.max() - HALF) * 1e6:.3f} um, p_A max p_S {p_a.max() - P_S:+.3e} Pa, "
+        f"final p_A {p_a[-1]:.6e} Pa"
+    )
     assert x.max() > HALF - 1e-6, "never reached the stop: " + msg
     assert x.max() <= HALF + 0.1e-3, msg
     assert p_a.max() <= P_S, msg
@@ -147,7 +165,9 @@ def test_slow_approach_to_end_stop_holds_rod_and_pressure_below_supply(version):
 @pytest.fixture(scope="module")
 def fast_impact(version):
     """i_ref 7 mA, valve wide open: the piston hits the + stop at ~1.03 m/s (~42 ms)."""
-    return ehsv.run_scenario(version, h=1e-5, t_stop=0.08, changes={"i_ref": 7e-3})  # at rest on the stop by 80 ms
+    return ehsv.run_scenario(
+        version, h=1e-5, t_stop=0.08, changes={"i_ref": 7e-3}
+    )  # at rest on the stop by 80 ms
 
 
 def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact):
@@ -172,13 +192,15 @@ def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact)
     penetration = float(x.max() - HALF)
     overpressure = float(p_a.max() - P_S)
     rebound = float(v[i:].min())
-    facts = (f"impact {v_impact:.4f} m/s at {r['time'][i] * 1e3:.2f} ms, penetration "
-             f"{penetration * 1e3:.5f} mm, p_A peak p_S + {overpressure * 1e-3:.2f} kPa, rebound {rebound:.4f} m/s")
+    facts = (
+        f"impact {v_impact:.4f} m/s at {r['time'][i] * 1e3:.2f} ms, penetration "
+        f"{penetration * 1e3:.5f} mm, p_A peak p_S + {overpressure * 1e-3:.2f} kPa, rebound {rebound:.4f} m/s"
+    )
     print(facts)
     assert 0.9 < v_impact < 1.2, facts
     # the known property itself
-    assert penetration > 0.1e-3, facts          # beyond the slow-approach bound
-    assert overpressure > 0.05 * P_S, facts     # ~0.64 MPa = 9 % of p_S
+    assert penetration > 0.1e-3, facts  # beyond the slow-approach bound
+    assert overpressure > 0.05 * P_S, facts  # ~0.64 MPa = 9 % of p_S
     assert -0.6 * v_impact < rebound < -0.4 * v_impact, facts
     # the damped spring-mass figure
     expected = ehsv.impact_estimate(v_impact, CYL, force=r["F_hydraulic"][i - 1])
@@ -187,7 +209,9 @@ def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact)
     k0 = i - 100
     n = 400
     y0 = [r[name][k0] for name in STATE]
-    assert abs(r["x_spool"][-1] - r["x_spool"][k0]) < 1e-6 * abs(r["x_spool"][k0]), "spool settled (the reference holds it constant)"
+    assert abs(r["x_spool"][-1] - r["x_spool"][k0]) < 1e-6 * abs(r["x_spool"][k0]), (
+        "spool settled (the reference holds it constant)"
+    )
     ref = ehsv.cylinder_reference(y0, r["x_spool"][k0], h=1e-5, n=n, substeps=40)
     ref_pen = float(ref[:, 2].max() - HALF)
     ref_dp = float(ref[:, 0].max() - P_S)
@@ -204,14 +228,21 @@ def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact)
 # Position loop, cavitation floor
 # --------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("load", [0.0, 0.3, -0.3], ids=["F_ext=0", "F_ext=+0.3stall", "F_ext=-0.3stall"])
 def test_position_step_settles_without_steady_state_error(version, load):
     """control_mode 2 (P gain 1 A/m, no integral), x_ref 0 -> 10 mm, 0.3 s at 1e-4 s,
     constant F_ext of 0 and +-30 % of the stall force p_S A_A (416 N): the valve is the
     integrator, so the piston ends on the command (|error| < 1 um); 2 % settling < 0.1 s."""
     f_ext = load * CYL.stall_force(P_S)
-    r = ehsv.run_scenario(version, h=1e-4, t_stop=0.3, params={"control_mode": ehsv.CONTROL_MODES["position"]},
-                          initial={"F_ext": f_ext}, changes={"x_ref": 10e-3})
+    r = ehsv.run_scenario(
+        version,
+        h=1e-4,
+        t_stop=0.3,
+        params={"control_mode": ehsv.CONTROL_MODES["position"]},
+        initial={"F_ext": f_ext},
+        changes={"x_ref": 10e-3},
+    )
     x = r["x_piston"]
     ts = ehsv.settling_time(r["time"], x, 0.0, 0.02, y_final=10e-3, y_initial=0.0)
     error = x[-1] - 10e-3
@@ -229,7 +260,9 @@ def test_overrunning_load_never_pulls_pressure_below_cavitation_floor(version):
     floor = ehsv.NOMINAL["hydraulics.p_cavitation"]
     r = ehsv.run_scenario(version, h=1e-5, t_stop=0.05, initial={"F_ext": 2000.0}, changes={"i_ref": 10e-3})
     p_min = float(min(r["p_A"].min(), r["p_B"].min()))
-    at_floor = float(np.count_nonzero(r["p_A"] < floor + 0.01 * ehsv.NOMINAL["hydraulics.dp_cavitation_band"]) * 1e-5)
+    at_floor = float(
+        np.count_nonzero(r["p_A"] < floor + 0.01 * ehsv.NOMINAL["hydraulics.dp_cavitation_band"]) * 1e-5
+    )
     msg = f"lowest chamber pressure {p_min:.6e} Pa, {at_floor * 1e3:.2f} ms within 500 Pa of the floor"
     print(msg)
     assert p_min >= floor - 1.0, msg

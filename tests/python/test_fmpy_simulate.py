@@ -1,21 +1,31 @@
 """The archives through fmpy's own master (fmpy.simulate_fmu), not our hand-stepped loop:
 start values by name, an input table with a step, outputs on fmpy's grid."""
+
 import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 
 def test_simulate_fmu_ideal_current_step(fmu):
     i = 5e-3
     t_step = 1e-3
     # a repeated time row is a discontinuity: 0 before t_step, i after it
-    inputs = np.array([(0.0, 0.0), (t_step, 0.0), (t_step, i), (0.04, i)],
-                      dtype=[("time", np.float64), ("i_ref", np.float64)])
-    r = simulate_fmu(str(fmu), start_time=0.0, stop_time=0.04, step_size=1e-5, output_interval=1e-5,
-                     start_values={"driver": ehsv.DRIVERS["ideal_current"], "V_supply": 72.0},
-                     input=inputs, output=["i_coil", "Q_valve"])
+    inputs = np.array(
+        [(0.0, 0.0), (t_step, 0.0), (t_step, i), (0.04, i)],
+        dtype=[("time", np.float64), ("i_ref", np.float64)],
+    )
+    r = simulate_fmu(
+        str(fmu),
+        start_time=0.0,
+        stop_time=0.04,
+        step_size=1e-5,
+        output_interval=1e-5,
+        start_values={"driver": ehsv.DRIVERS["ideal_current"], "V_supply": 72.0},
+        input=inputs,
+        output=["i_coil", "Q_valve"],
+    )
     t, q, cur = r["time"], r["Q_valve"], r["i_coil"]
     before = t < t_step - 1e-9
     assert np.all(q[before] == 0.0) and np.all(cur[before] == 0.0)
@@ -28,9 +38,15 @@ def test_simulate_fmu_ideal_current_step(fmu):
 
 def test_initialised_in_equilibrium_for_the_start_input(fmu):
     # i_ref = 5 mA from the start: the valve starts (and stays) at its steady flow
-    r = simulate_fmu(str(fmu), stop_time=0.01, step_size=1e-4, output_interval=1e-4,
-                     start_values={"i_ref": 5e-3}, output=["i_coil", "Q_valve", "u_driver"])
-    q_ss = ehsv.FLOW_GAIN * 5e-3
+    r = simulate_fmu(
+        str(fmu),
+        stop_time=0.01,
+        step_size=1e-4,
+        output_interval=1e-4,
+        start_values={"i_ref": 5e-3},
+        output=["i_coil", "Q_valve", "u_driver"],
+    )
+    q_ss = ehsv.flow_gain() * 5e-3
     assert np.max(np.abs(r["Q_valve"] - q_ss)) <= 1e-6 * q_ss
     assert np.max(np.abs(r["i_coil"] - 5e-3)) <= 1e-6 * 5e-3
     assert np.max(np.abs(r["u_driver"] - 5.0)) <= 1e-6 * 5.0

@@ -2,7 +2,7 @@
 
 Scenario: opamp_pi driver (default), V_supply 72 V, i_ref 0 -> 5 mA at t = 1 ms, 10 ms at
 1e-4 s communication steps. The reference is fmpy's FMU2Slave/FMU3Slave stepped by hand
-(ehsv_scenarios.run_step); compared with
+(ehsv.run_step); compared with
 * fmpy.simulate_fmu (fmpy's own master, input table with the step),
 * libcosimpy 0.0.6 (libcosim through its C API; FMI 2.0 only: libcosim's FMI library
   loads FMI 1.0/2.0 FMUs), the command set with an override manipulator,
@@ -13,6 +13,7 @@ Scenario: opamp_pi driver (default), V_supply 72 V, i_ref 0 -> 5 mA at t = 1 ms,
   dangling pointer, and fmpy's native proxy formats it and crashes the process (seen in
   container_configure -> logger_message; our FMU is not on that stack).
 """
+
 import shutil
 import subprocess
 import sys
@@ -21,13 +22,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 H, T_STOP, T_STEP, I_STEP = 1e-4, 0.01, 1e-3, 5e-3
 OUTPUTS = ("i_coil", "u_driver", "x_spool", "Q_valve")
 N = int(round(T_STOP / H))
-INPUT = np.array([(0.0, 0.0), (T_STEP, 0.0), (T_STEP, I_STEP), (T_STOP, I_STEP)],
-                 dtype=[("time", np.float64), ("i_ref", np.float64)])
+INPUT = np.array(
+    [(0.0, 0.0), (T_STEP, 0.0), (T_STEP, I_STEP), (T_STOP, I_STEP)],
+    dtype=[("time", np.float64), ("i_ref", np.float64)],
+)
 
 
 def reference(version):
@@ -47,8 +50,16 @@ def assert_agree(name, ref, other):
 
 def simulate(path):
     from fmpy import simulate_fmu
-    r = simulate_fmu(str(path), start_time=0.0, stop_time=T_STOP, step_size=H, output_interval=H,
-                     input=INPUT, output=list(OUTPUTS))
+
+    r = simulate_fmu(
+        str(path),
+        start_time=0.0,
+        stop_time=T_STOP,
+        step_size=H,
+        output_interval=H,
+        input=INPUT,
+        output=list(OUTPUTS),
+    )
     assert np.allclose(r["time"], np.arange(N + 1) * H, rtol=0, atol=1e-12)
     return r
 
@@ -106,11 +117,20 @@ def containers(fmu, tmp_path_factory):
     built = {}
     for fmi in ("2", "3"):
         csv = work / f"ehsv_container_fmi{fmi}.csv"
-        lines = ["rule;from_fmu;from_port;to_fmu;to_port", f"FMU;{fmu.name};;;", f"INPUT;;i_ref;{fmu.name};i_ref"]
+        lines = [
+            "rule;from_fmu;from_port;to_fmu;to_port",
+            f"FMU;{fmu.name};;;",
+            f"INPUT;;i_ref;{fmu.name};i_ref",
+        ]
         lines += [f"OUTPUT;{fmu.name};{o};;{o}" for o in OUTPUTS]
         csv.write_text("\n".join(lines) + "\n")
-        proc = subprocess.run([str(tool), "-container", f"{csv.name}:{H}", "-fmi", fmi, "-fmu-directory", str(work)],
-                              cwd=work, capture_output=True, text=True, timeout=300)
+        proc = subprocess.run(
+            [str(tool), "-container", f"{csv.name}:{H}", "-fmi", fmi, "-fmu-directory", str(work)],
+            cwd=work,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         out = csv.with_suffix(".fmu")
         assert proc.returncode == 0 and out.exists(), f"fmucontainer failed:\n{proc.stdout}\n{proc.stderr}"
         built[fmi] = out
@@ -120,13 +140,21 @@ def containers(fmu, tmp_path_factory):
 def step_fmi2_by_hand(path):
     """The scenario through FMU2Slave with a fixed-argument logger (no varargs formatting)."""
     import ctypes
+
     from fmpy import extract, read_model_description
-    from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                           fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+    from fmpy.fmi2 import (
+        FMU2Slave,
+        fmi2CallbackAllocateMemoryTYPE,
+        fmi2CallbackFreeMemoryTYPE,
+        fmi2CallbackFunctions,
+        fmi2CallbackLoggerTYPE,
+    )
+
     md = read_model_description(str(path))
     refs = {v.name: v.valueReference for v in md.modelVariables}
-    raw_logger = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)(
-        lambda env, name, status, category, message: None)
+    raw_logger = ctypes.CFUNCTYPE(
+        None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p
+    )(lambda env, name, status, category, message: None)
     keep = []  # buffers handed to the FMU live as long as the run
 
     def allocate(n, size):
@@ -138,8 +166,12 @@ def step_fmi2_by_hand(path):
     callbacks.logger = ctypes.cast(raw_logger, fmi2CallbackLoggerTYPE)
     callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(allocate)
     callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(lambda p: None)
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(path)),
-                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="container")
+    fmu = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=extract(str(path)),
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="container",
+    )
     fmu.instantiate(callbacks=callbacks)
     fmu.setupExperiment(startTime=0.0, stopTime=T_STOP)
     fmu.enterInitializationMode()

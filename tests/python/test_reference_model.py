@@ -5,12 +5,13 @@ exponential, the settling-time measure, and that the exact solution of the linea
 model reproduces the published figures (rows 6, 7 and 10). If one of these fails, the
 FMU tests that rely on it mean nothing.
 """
+
 import math
 
 import numpy as np
 import pytest
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 
 def test_expm_matches_eigendecomposition():
@@ -59,8 +60,8 @@ def test_exact_solution_reproduces_published_figures():
     ts = ehsv.settling_time(volt["time"], volt["Q_valve"], 0.0, 0.05)
     assert ts == pytest.approx(10.99e-3, rel=0.005)  # row 7
     # row 10: steady-state gain K3*K1/Kw = 0.025268 m3/s per A
-    assert ehsv.FLOW_GAIN == pytest.approx(0.025268, rel=1e-4)
-    assert volt["Q_valve"][-1] / i == pytest.approx(ehsv.FLOW_GAIN, rel=1e-6)
+    assert ehsv.flow_gain() == pytest.approx(0.025268, rel=1e-4)
+    assert volt["Q_valve"][-1] / i == pytest.approx(ehsv.flow_gain(), rel=1e-6)
     # the voltage driver's coil current is the first-order L/R lag
     tau = ehsv.NOMINAL["coil.L"] / ehsv.NOMINAL["coil.R"]
     k = 3200  # 3.2 ms = one time constant
@@ -73,5 +74,5 @@ def test_direct_and_propagated_exact_solutions_agree():
         direct = ehsv.linear_step_response(driver, 5e-3, t)
         dense = ehsv.linear_step_response_dense(driver, 5e-3, 1e-5, 1e-2)
         idx = np.rint(t / 1e-5).astype(int)
-        q_final = ehsv.FLOW_GAIN * 5e-3
+        q_final = ehsv.flow_gain() * 5e-3
         assert np.max(np.abs(direct["Q_valve"] - dense["Q_valve"][idx])) <= 1e-10 * q_final

@@ -7,6 +7,7 @@ Error status and a log line in the loading process, never a crash.
 Each role runs as `python test_robustness_state.py {save|load|corrupt} ...` in a child
 process, so a crash of the FMU shows as a failed test, not a dead pytest.
 """
+
 import json
 import subprocess
 import sys
@@ -14,10 +15,9 @@ from pathlib import Path
 
 import pytest
 
-HERE = Path(__file__).resolve()
-sys.path.insert(0, str(HERE.parents[2] / "cosim-examples"))
-import ehsv_scenarios as ehsv  # noqa: E402
+import ehsv
 
+HERE = Path(__file__).resolve()
 H = 1e-4
 K_SAVE, N_AFTER = 37, 50
 NAMES = ("i_coil", "u_driver", "driver_saturated", "x_flapper", "x_spool", "Q_valve", "time")
@@ -73,7 +73,7 @@ def child_corrupt(version, state_file, out_file):
     from fmpy.fmi1 import FMICallException
 
     good = Path(state_file).read_bytes()
-    bad = [good[:i] + bytes([good[i] ^ 0xFF]) + good[i + 1:] for i in range(len(good))]
+    bad = [good[:i] + bytes([good[i] ^ 0xFF]) + good[i + 1 :] for i in range(len(good))]
     bad += [good[:n] for n in range(1, len(good))]  # (fmpy cannot pass 0 bytes)
     bad += [good + b"\0", b"EHSVST02" + good[8:], bytes(range(256)) * 3]
     inst = ehsv.Ehsv(version)
@@ -85,7 +85,9 @@ def child_corrupt(version, state_file, out_file):
         try:
             deserialize(b)
         except FMICallException as e:
-            lines = [r for r in inst.log[before:] if r.status == FMI_ERROR and "cannot deserialize" in r.message]
+            lines = [
+                r for r in inst.log[before:] if r.status == FMI_ERROR and "cannot deserialize" in r.message
+            ]
             refused += e.status == FMI_ERROR and len(lines) == 1
     state = deserialize(good)  # the good bytes still work after all that
     set_(state)
@@ -96,9 +98,13 @@ def child_corrupt(version, state_file, out_file):
 
 
 def child(*args):
-    proc = subprocess.run([sys.executable, str(HERE), *map(str, args)], capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, (f"child {args[0]} ended with {proc.returncode} (negative: a crash)\n"
-                                  f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}")
+    proc = subprocess.run(
+        [sys.executable, str(HERE), *map(str, args)], capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, (
+        f"child {args[0]} ended with {proc.returncode} (negative: a crash)\n"
+        f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}"
+    )
 
 
 @pytest.mark.parametrize("load_version", ehsv.VERSIONS)

@@ -6,16 +6,17 @@ drivers they must equal the exact solution of the linear ODE (ehsv.linear_step_r
 numpy matrix exponential). Tolerance: 1e-6 of the step size of the signal, i.e. 5e-9 A for
 a 5 mA step and 1e-6 of the final flow for Q_valve.
 """
+
 import numpy as np
 import pytest
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 I_STEP = 5e-3
 T_STOP = 10e-3  # long enough to cover the transients, short enough for 10 000 steps at 1 us
 STEPS = (1e-6, 1e-5, 1e-4, 1e-3)
 OUTPUTS = ("i_coil", "u_driver", "Q_valve")
-TOL = {"i_coil": 1e-6 * I_STEP, "Q_valve": 1e-6 * ehsv.FLOW_GAIN * I_STEP}
+TOL = {"i_coil": 1e-6 * I_STEP, "Q_valve": 1e-6 * ehsv.flow_gain() * I_STEP}
 
 
 def _shared(fine, coarse, h_fine, h_coarse):
@@ -34,10 +35,12 @@ def test_outputs_do_not_depend_on_the_step_size(version, run, driver, h):
     for name, tol in TOL.items():
         diff = np.abs(fine[name][idx] - coarse[name])
         k = int(np.argmax(diff))
-        assert diff[k] <= tol, (f"{name}: |h=1e-6 run - h={h:g} run| = {diff[k]:.3e} at "
-                                f"t = {coarse['time'][k] * 1e3:.3f} ms (tolerance {tol:.1e})")
+        assert diff[k] <= tol, (
+            f"{name}: |h=1e-6 run - h={h:g} run| = {diff[k]:.3e} at "
+            f"t = {coarse['time'][k] * 1e3:.3f} ms (tolerance {tol:.1e})"
+        )
     # the comparison has teeth: the signals did move over the run
-    assert abs(coarse["Q_valve"][-1]) > 0.5 * ehsv.FLOW_GAIN * I_STEP
+    assert abs(coarse["Q_valve"][-1]) > 0.5 * ehsv.flow_gain() * I_STEP
 
 
 @pytest.mark.parametrize("driver", ["ideal_current", "voltage"])
@@ -50,8 +53,10 @@ def test_linear_drivers_match_the_exact_solution(version, run, driver, h):
     for name, tol in TOL.items():
         diff = np.abs(got[name][1:] - ref[name][1:])
         k = int(np.argmax(diff))
-        assert diff[k] <= tol, (f"{name}: |FMU - exact| = {diff[k]:.3e} at t = "
-                                f"{got['time'][k + 1] * 1e3:.4f} ms (tolerance {tol:.1e})")
+        assert diff[k] <= tol, (
+            f"{name}: |FMU - exact| = {diff[k]:.3e} at t = "
+            f"{got['time'][k + 1] * 1e3:.4f} ms (tolerance {tol:.1e})"
+        )
 
 
 def test_ideal_current_follows_the_command_exactly(version, run):

@@ -6,34 +6,13 @@
 //! Everything here happens at *time events* on an absolute clock (sample k at k/f_sample,
 //! period k at k/f_pwm), so the switching instants are exact and the same at any
 //! communication step. Between them the bridge voltage is constant and the continuous
-//! part is linear (see the parent module).
+//! part is linear (see [`super::exact_integrator`]).
 
+use super::params::HBridgeParams;
 use crate::model::Reader;
-use crate::variables::{vr, N_VARIABLES};
-
-#[derive(Clone, Copy, Debug, Default)]
-pub struct HBridgeParams {
-    pub enabled: bool,
-    pub f_pwm: f64,
-    pub f_sample: f64,
-    pub kp: f64,
-    pub ki: f64,
-    pub feedforward: bool,
-}
 
 impl HBridgeParams {
-    pub fn from_values(v: &[f64; N_VARIABLES]) -> Self {
-        HBridgeParams {
-            enabled: v[vr::DRIVER] == 4.0,
-            f_pwm: v[vr::HBRIDGE_F_PWM],
-            f_sample: v[vr::HBRIDGE_F_SAMPLE],
-            kp: v[vr::HBRIDGE_KP],
-            ki: v[vr::HBRIDGE_KI],
-            feedforward: v[vr::HBRIDGE_FEEDFORWARD] != 0.0,
-        }
-    }
-
-    pub fn period(&self) -> f64 {
+    pub(crate) fn period(&self) -> f64 {
         1.0 / self.f_pwm
     }
 
@@ -48,13 +27,13 @@ impl HBridgeParams {
 
 /// Discrete state of the digital loop and the PWM.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Digital {
+pub(crate) struct Digital {
     active: bool,
-    /// PI integrator [V].
+    /// PI integrator (V).
     integral: f64,
-    /// Command computed at the last sample, in force from the next one [V].
+    /// Command computed at the last sample, in force from the next one (V).
     pending: f64,
-    /// Command in force (latched by the next PWM period) [V].
+    /// Command in force (latched by the next PWM period) (V).
     applied: f64,
     next_sample: i64,
     next_period: i64,
@@ -67,17 +46,15 @@ pub struct Digital {
 }
 
 impl Digital {
-    /// Holding `u` on average (the equilibrium voltage) at `start_time`.
-    pub fn at_equilibrium(
+    /// Holding `u` on average (the equilibrium voltage) at `start_time`. (Without an
+    /// H-bridge the digital state is `Digital::default()`, inactive.)
+    pub(crate) fn at_equilibrium(
         p: &HBridgeParams,
         u: f64,
         feedforward_u: f64,
         rail: f64,
         start_time: f64,
     ) -> Self {
-        if !p.enabled {
-            return Digital::default();
-        }
         let first_period = (start_time * p.f_pwm + 1e-9).floor() as i64;
         let mut d = Digital {
             active: true,
@@ -97,7 +74,7 @@ impl Digital {
     }
 
     /// Time of the next switching or sampling instant (infinite without an H-bridge).
-    pub fn next_event(&self, p: &HBridgeParams) -> f64 {
+    pub(crate) fn next_event(&self, p: &HBridgeParams) -> f64 {
         if !self.active {
             return f64::INFINITY;
         }
@@ -107,7 +84,7 @@ impl Digital {
     }
 
     /// Upper bound of the time events before `t_end`.
-    pub fn events_until(&self, p: &HBridgeParams, t_end: f64) -> u64 {
+    pub(crate) fn events_until(&self, p: &HBridgeParams, t_end: f64) -> u64 {
         if !self.active {
             return 0;
         }
@@ -117,7 +94,14 @@ impl Digital {
 
     /// Handles the earliest pending instant. At equal times: edges of the ending period,
     /// then the sample (so its predecessor's command is in force), then the new period.
-    pub fn fire(&mut self, p: &HBridgeParams, i_coil: f64, i_cmd: f64, r_total: f64, rail: f64) {
+    pub(crate) fn fire(
+        &mut self,
+        p: &HBridgeParams,
+        i_coil: f64,
+        i_cmd: f64,
+        r_total: f64,
+        rail: f64,
+    ) {
         let t = self.next_event(p);
         if self.next_edge < 2 && self.edges[self.next_edge as usize] <= t {
             self.take_edge();
@@ -160,7 +144,7 @@ impl Digital {
         self.next_period += 1;
     }
 
-    pub fn output(&self, rail: f64) -> f64 {
+    pub(crate) fn output(&self, rail: f64) -> f64 {
         if self.high {
             rail
         } else {
@@ -169,11 +153,11 @@ impl Digital {
     }
 
     /// The commanded voltage is at a rail (duty 0 % or 100 %).
-    pub fn saturated(&self, rail: f64) -> bool {
+    pub(crate) fn saturated(&self, rail: f64) -> bool {
         self.active && self.applied.abs() >= rail
     }
 
-    pub fn write_bytes(&self, out: &mut Vec<u8>) {
+    pub(crate) fn write_bytes(&self, out: &mut Vec<u8>) {
         out.push(self.active as u8 | (self.high as u8) << 1);
         out.push(self.next_edge);
         for x in [
@@ -189,7 +173,7 @@ impl Digital {
         }
     }
 
-    pub fn read_bytes(r: &mut Reader) -> Result<Self, String> {
+    pub(crate) fn read_bytes(r: &mut Reader) -> Result<Self, String> {
         let flags = r.u8()?;
         let next_edge = r.u8()?;
         let mut x = [0.0; 7];

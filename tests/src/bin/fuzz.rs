@@ -1,7 +1,8 @@
 //! Random FMI call sequences with random arguments through the exported C functions of
 //! both versions (the rlib's `extern "C"` functions, the same code the cdylib exports):
 //! NULL and foreign instances, NULL arrays, wrong counts, NaN/Inf/huge values, random
-//! value references, random and mutated bytes for deserialization, calls in every state.
+//! value references, random and mutated bytes for deserialization, calls in every state,
+//! FMU states handed to instances that did not make them, or after their instance was freed.
 //! A panic escaping a function aborts the process; a call that hangs trips the watchdog.
 //!
 //!     cargo run --release -p ehsv-tests --bin fuzz -- [SECONDS] [SEED]   # default 60 s
@@ -114,11 +115,12 @@ struct Fuzzer {
     rng: Rng,
     /// Live instances: (is FMI 3, pointer).
     instances: Vec<(bool, *mut c_void)>,
-    /// Live FMU states (either version's functions accept them).
-    states: Vec<*mut c_void>,
+    /// Live FMU states with the instance that made (and owns) each.
+    states: Vec<(*mut c_void, *mut c_void)>,
     /// Serialized states seen so far, mutated for deserialization.
     bytes: Vec<Vec<u8>>,
-    /// Not an instance or state: the FMU must recognise it by its magic number.
+    /// Not an instance or state: the FMU must recognise it (instances by their magic
+    /// number, states by not being in the instance's own list).
     junk: Box<[u64; 64]>,
     calls: u64,
 }
@@ -131,8 +133,13 @@ const CALLBACKS: fmi2CallbackFunctions = fmi2CallbackFunctions {
     componentEnvironment: null_mut(),
 };
 
+/// The FMU answers OK, Discard or Error only: it never returns Warning (nothing is
+/// approximated) nor Fatal (an error never reaches other instances). Fails on either.
 fn check(status: Status) {
-    assert!((status as i32) >= 0 && (status as i32) <= 4);
+    assert!(
+        matches!(status, Status::OK | Status::Discard | Status::Error),
+        "the FMU returned {status:?}"
+    );
 }
 
 impl Fuzzer {
@@ -171,7 +178,7 @@ impl Fuzzer {
             0 => null_mut(),
             1 => self.junk.as_mut_ptr().cast(),
             _ if self.states.is_empty() => null_mut(),
-            _ => self.states[self.rng.below(self.states.len())],
+            _ => self.states[self.rng.below(self.states.len())].1,
         }
     }
 
@@ -324,7 +331,7 @@ impl Fuzzer {
                         if fmi3 { fmi3GetFMUState(i, slot) } else { fmi2GetFMUstate(i, slot) };
                     check(status);
                     if status == Status::OK && !reused && !s.is_null() {
-                        self.states.push(s);
+                        self.states.push((i, s));
                     }
                 }
                 21 => {
@@ -336,8 +343,8 @@ impl Fuzzer {
                         return;
                     }
                     let k = self.rng.below(self.states.len());
-                    let mut s = self.states[k];
-                    let i = self.instance(fmi3);
+                    let (owner, mut s) = self.states[k];
+                    let i = if self.rng.chance(2) { owner } else { self.instance(fmi3) };
                     let status = if fmi3 {
                         fmi3FreeFMUState(i, &mut s)
                     } else {
@@ -346,6 +353,7 @@ impl Fuzzer {
                     check(status);
                     if status == Status::OK {
                         assert!(s.is_null());
+                        assert_eq!(i, owner, "a state was freed through an instance not its own");
                         self.states.swap_remove(k);
                     }
                 }
@@ -469,6 +477,8 @@ impl Fuzzer {
                 fmi2FreeInstance(i)
             }
         }
+        // FreeInstance freed the instance's states; their pointers are stale now.
+        self.states.retain(|&(owner, _)| owner != i);
     }
 
     fn set_values(&mut self, fmi3: bool) {
@@ -569,31 +579,16 @@ impl Fuzzer {
             check(status);
             assert_eq!(status == Status::OK, !s.is_null(), "a state exactly when OK");
             if !s.is_null() {
-                self.states.push(s);
+                self.states.push((i, s));
             }
         }
     }
 
-    /// Frees every state and instance (a leak checker sees nothing left).
+    /// Frees every instance, and with it the FMU states it still holds (a leak checker
+    /// sees nothing left).
     fn finish(&mut self) {
-        let janitor = unsafe {
-            fmi2Instantiate(
-                c"janitor".as_ptr(),
-                fmi2CoSimulation,
-                self.token_ok().as_ptr(),
-                null(),
-                null(),
-                0,
-                0,
-            )
-        };
-        assert!(!janitor.is_null());
-        for mut s in self.states.drain(..) {
-            assert_eq!(unsafe { fmi2FreeFMUstate(janitor, &mut s) }, Status::OK);
-        }
-        unsafe { fmi2FreeInstance(janitor) };
-        while !self.instances.is_empty() {
-            let (fmi3, i) = self.instances.pop().unwrap();
+        self.states.clear();
+        while let Some((fmi3, i)) = self.instances.pop() {
             unsafe {
                 if fmi3 {
                     fmi3FreeInstance(i)
@@ -602,10 +597,6 @@ impl Fuzzer {
                 }
             }
         }
-    }
-
-    fn token_ok(&self) -> CString {
-        CString::new(interface_token()).unwrap()
     }
 }
 
@@ -646,7 +637,11 @@ fn fuzz(seconds: f64, seed: u64) -> u64 {
 }
 
 fn main() {
-    let mut args = std::env::args().skip(1);
+    let mut args = std::env::args().skip(1).peekable();
+    if args.peek().is_some_and(|a| a == "-h" || a == "--help") {
+        println!("usage: fuzz [SECONDS] [SEED]   (default 60 s or $EHSV_FUZZ_SECONDS, seed {DEFAULT_SEED})");
+        return;
+    }
     let env_seconds = std::env::var("EHSV_FUZZ_SECONDS").ok().and_then(|s| s.parse().ok());
     let seconds: f64 = args.next().and_then(|s| s.parse().ok()).or(env_seconds).unwrap_or(60.0);
     let seed: u64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(DEFAULT_SEED);
@@ -663,7 +658,9 @@ fn main() {
 mod tests {
     #[test]
     fn three_seconds_of_random_fmi_calls() {
-        // The known physics hang has its own failing test (fmu-src/tests/robustness.rs,
+        // The hang this fuzzer once found (parameters at the ends of the f64 range) is
+        // pinned by extreme_finite_parameters_return_in_bounded_time in
+        // fmu-src/tests/robustness.rs.
         let calls = super::fuzz(3.0, 20240521);
         println!("fuzz: {calls} FMI calls in 3 s, no crash, hang or panic");
         assert!(calls > 10_000, "only {calls} calls");

@@ -3,18 +3,12 @@
 //! samples and limited to +-`loop.i_max`. The flow loop adds the feed-forward
 //! Q_ref / (K3*K1/Kw), the valve's static flow gain.
 
+use super::params::{ControlMode, OuterLoopParams};
 use crate::model::Reader;
-use crate::variables::{vr, N_VARIABLES};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ControlMode {
-    Current,
-    Flow,
-    Position,
-}
-
+/// The active loop's parameters.
 #[derive(Clone, Copy, Debug)]
-pub struct LoopParams {
+pub(crate) struct LoopParams {
     pub mode: ControlMode,
     pub f_sample: f64,
     pub i_max: f64,
@@ -25,26 +19,13 @@ pub struct LoopParams {
 }
 
 impl LoopParams {
-    pub fn from_values(v: &[f64; N_VARIABLES], static_flow_gain: f64) -> Result<Self, String> {
-        let mode = match v[vr::CONTROL_MODE] as i64 {
-            0 => ControlMode::Current,
-            1 => ControlMode::Flow,
-            2 => ControlMode::Position,
-            other => return Err(format!("control_mode = {other} is not available (0, 1 or 2)")),
-        };
+    /// `static_flow_gain`: the valve's no-load flow per coil current, K3 K1 / Kw.
+    pub(crate) fn new(p: &OuterLoopParams, mode: ControlMode, static_flow_gain: f64) -> Self {
         let (gains, feedforward) = match mode {
-            ControlMode::Flow => {
-                ([v[vr::FLOW_KP], v[vr::FLOW_KI], v[vr::FLOW_KD]], 1.0 / static_flow_gain)
-            }
-            _ => ([v[vr::POSITION_KP], v[vr::POSITION_KI], v[vr::POSITION_KD]], 0.0),
+            ControlMode::Flow => (p.flow, 1.0 / static_flow_gain),
+            _ => (p.position, 0.0),
         };
-        Ok(LoopParams {
-            mode,
-            f_sample: v[vr::LOOP_F_SAMPLE],
-            i_max: v[vr::LOOP_I_MAX],
-            gains,
-            feedforward,
-        })
+        LoopParams { mode, f_sample: p.f_sample, i_max: p.i_max, gains, feedforward }
     }
 
     fn sample_time(&self, k: i64) -> f64 {
@@ -54,18 +35,18 @@ impl LoopParams {
 
 /// Discrete state of the outer PID.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct OuterLoop {
+pub(crate) struct OuterLoop {
     active: bool,
     integral: f64,
     previous_error: f64,
-    /// Current command in force [A].
-    pub command: f64,
+    /// Current command in force (A).
+    pub(crate) command: f64,
     next_sample: i64,
 }
 
 impl OuterLoop {
     /// Settled on `reference` at `start_time` (flow: the feed-forward alone holds it).
-    pub fn at_start(p: &LoopParams, reference: f64, start_time: f64) -> Self {
+    pub(crate) fn at_start(p: &LoopParams, reference: f64, start_time: f64) -> Self {
         if p.mode == ControlMode::Current {
             return OuterLoop::default();
         }
@@ -77,7 +58,7 @@ impl OuterLoop {
         }
     }
 
-    pub fn next_event(&self, p: &LoopParams) -> f64 {
+    pub(crate) fn next_event(&self, p: &LoopParams) -> f64 {
         if self.active {
             p.sample_time(self.next_sample)
         } else {
@@ -85,7 +66,7 @@ impl OuterLoop {
         }
     }
 
-    pub fn events_until(&self, p: &LoopParams, t_end: f64) -> u64 {
+    pub(crate) fn events_until(&self, p: &LoopParams, t_end: f64) -> u64 {
         if !self.active {
             return 0;
         }
@@ -94,7 +75,7 @@ impl OuterLoop {
 
     /// One PID sample; the integrator holds while the command is limited and the error
     /// pushes further (conditional integration).
-    pub fn sample(&mut self, p: &LoopParams, reference: f64, measured: f64) {
+    pub(crate) fn sample(&mut self, p: &LoopParams, reference: f64, measured: f64) {
         let [kp, ki, kd] = p.gains;
         let e = reference - measured;
         let derivative = kd * (e - self.previous_error) * p.f_sample;
@@ -109,14 +90,14 @@ impl OuterLoop {
         self.next_sample += 1;
     }
 
-    pub fn write_bytes(&self, out: &mut Vec<u8>) {
+    pub(crate) fn write_bytes(&self, out: &mut Vec<u8>) {
         out.push(self.active as u8);
         for x in [self.integral, self.previous_error, self.command, self.next_sample as f64] {
             out.extend_from_slice(&x.to_le_bytes());
         }
     }
 
-    pub fn read_bytes(r: &mut Reader) -> Result<Self, String> {
+    pub(crate) fn read_bytes(r: &mut Reader) -> Result<Self, String> {
         let active = r.u8()?;
         let mut x = [0.0; 4];
         for v in x.iter_mut() {

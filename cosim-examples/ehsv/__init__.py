@@ -1,0 +1,78 @@
+"""Python side of the EhsvActuator FMU: what the examples in cosim-examples and the tests
+in tests/python share, one module for each concern.
+
+* ``paths``: where the built archives are,
+* ``contract``: the FMU's interface, read from its modelDescription.xml,
+* ``fmu``: one instance through fmpy, values by name, the FMU's log captured,
+* ``scenarios``: steps of the inputs run through the FMU, the paper's driver table and
+  flow-loop comparison,
+* ``measures``: settling time, time on a rail, PWM-period means, volume balance,
+* ``bands``: the paper's figures and the bands the FMU must land in,
+* ``reference``: numpy reference models (exact linear valve, cylinder RK4),
+* ``report``: the tables printed by the examples, ``plotting``: figures to files,
+* ``bad_input``: the bad-input cases run in a child process.
+
+The names below are the package's public surface (``import ehsv; ehsv.run_step(...)``).
+Nothing here builds anything: the archives are made by ``cargo run --release -p
+build-fmu`` (scripts/test.sh and scripts/demo.sh do it first).
+"""
+
+from .bad_input import BAD_INPUT_CASES, bad_input_case
+from .bands import (
+    FLOW_RATIO_MIN,
+    FLOW_STEP,
+    PAPER_DRIVERS,
+    PAPER_FLOW,
+    PAPER_FLOW_RATIO,
+    PAPER_STEP,
+    PAPER_T_TORQUE,
+    PAPER_TOLERANCE,
+    ROWS,
+    PaperDriver,
+    PaperFlowRun,
+)
+from .contract import (
+    CONTROL_MODES,
+    DRIVERS,
+    INPUTS,
+    NOMINAL,
+    OUTPUTS,
+    PWM_DRIVERS,
+    flow_gain,
+    interface,
+    parameters,
+)
+from .fmu import Ehsv, LogRecord
+from .measures import period_average, pwm_period, settling_time, time_at_rail, volume_balance
+from .paths import FMU_DIR, REPO, VERSIONS, fmu_path, missing_fmu_message, require_fmu
+from .plotting import pyplot, save_figure
+from .reference import (
+    Cylinder,
+    augmented_linear_model,
+    cylinder_derivatives,
+    cylinder_reference,
+    expm,
+    impact_estimate,
+    linear_model,
+    linear_step_response,
+    linear_step_response_dense,
+)
+from .report import driver_table, flow_table
+from .scenarios import (
+    COMPARE_H,
+    COMPARE_T_STOP,
+    DEFAULT_OUTPUTS,
+    FLOW_H,
+    FLOW_T_STOP,
+    HYDRAULIC_OUTPUTS,
+    DriverResult,
+    FlowStepResult,
+    compare_drivers,
+    compare_flow_supplies,
+    driver_step,
+    flow_step,
+    run_scenario,
+    run_step,
+)
+
+__all__ = [name for name in dir() if not name.startswith("_")]

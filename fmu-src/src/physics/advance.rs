@@ -1,0 +1,261 @@
+//! Advancing [`Physics`] over one communication step: the time events of the digital
+//! loops cut the step; between them driver, coil and valve evolve exactly (state events
+//! located on the way) and the cylinder follows along the exact spool path.
+
+use super::*;
+
+impl Physics {
+    /// Advances from `t_start` by `step` seconds with `inputs` held constant.
+    /// On error the state is left as it was.
+    pub(crate) fn advance(
+        &mut self,
+        inputs: &Inputs,
+        t_start: f64,
+        step: f64,
+    ) -> Result<StepEvents, String> {
+        let saved = (
+            self.z,
+            self.mode,
+            self.stops,
+            self.digital,
+            self.outer,
+            self.cylinder,
+            self.cylinder_memory,
+            self.p_supply,
+        );
+        let result = self.advance_inner(inputs, t_start, step);
+        if result.is_err() {
+            (
+                self.z,
+                self.mode,
+                self.stops,
+                self.digital,
+                self.outer,
+                self.cylinder,
+                self.cylinder_memory,
+                self.p_supply,
+            ) = saved;
+            self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
+            self.cylinder_rest = None;
+        }
+        result
+    }
+
+    fn advance_inner(
+        &mut self,
+        inputs: &Inputs,
+        t_start: f64,
+        step: f64,
+    ) -> Result<StepEvents, String> {
+        let mut events = StepEvents::default();
+        let inputs = Held::new(&self.params, inputs);
+        self.p_supply = inputs.p_supply;
+        self.follow_command(&inputs, &mut events);
+        let t_end = t_start + step;
+        let p = self.params;
+        let time_events =
+            self.digital.events_until(&p.hbridge, t_end) + self.outer.events_until(&p.loops, t_end);
+        if time_events > MAX_TIME_EVENTS_PER_STEP {
+            return Err(format!(
+                "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
+            ));
+        }
+        // Time events a hair past the step end (rounding of t_start + step) belong to it.
+        let slack = 1e-9 * step.min(p.hbridge.period()).min(1.0 / p.loops.f_sample);
+        let mut t = t_start;
+        loop {
+            let t_bridge = self.digital.next_event(&p.hbridge);
+            let t_loop = self.outer.next_event(&p.loops);
+            let t_event = t_bridge.min(t_loop);
+            let fire = t_event <= t_end + slack;
+            let segment_end = if fire { t_event.min(t_end) } else { t_end };
+            if segment_end > t {
+                self.evolve(segment_end - t, &inputs, &mut events)?;
+                t = segment_end;
+            }
+            if !fire {
+                break;
+            }
+            if t_loop <= t_bridge {
+                // The outer loop samples first, so a bridge sample at the same instant sees its command.
+                let measured = match p.loops.mode {
+                    ControlMode::Flow => valve::no_load_flow(&p, self.z[XS]),
+                    _ => self.cylinder.x,
+                };
+                self.outer.sample(&p.loops, inputs.reference, measured);
+                self.follow_command(&inputs, &mut events);
+            } else {
+                self.digital.fire(&p.hbridge, self.z[I], self.z[IREF], p.r_total, self.z[VMAX]);
+                self.z[U] = self.digital.output(self.z[VMAX]);
+            }
+        }
+        if !self.z.iter().all(|x| x.is_finite()) {
+            return Err("the state became non-finite; step refused".into());
+        }
+        Ok(events)
+    }
+
+    /// Takes a new current command or rail into the state. A state that ended the last step
+    /// is consistent with its mode; only a new command or rail (or a restored state) needs
+    /// the mode chosen again.
+    fn follow_command(&mut self, inputs: &Held, events: &mut StepEvents) {
+        let i_cmd = self.current_command(inputs);
+        if self.z[IREF] != i_cmd || self.z[VMAX] != inputs.rail {
+            let mut z = self.z;
+            driver::apply_inputs(&self.params, &mut z, i_cmd, inputs.rail);
+            let before = self.mode;
+            self.settle(&mut z);
+            driver::count_switch(events, before, self.mode);
+            self.z = z;
+        }
+    }
+
+    /// Advances the cylinder over a piece of `h` seconds in which the valve went from `z0`
+    /// to `z1`: the spool path is the quintic Hermite interpolant of its exact position,
+    /// velocity and acceleration at both ends. A cylinder at rest behind a still spool is
+    /// left as it is; `rest` remembers
+    /// the (spool, supply, load) bits at which that was last verified, a pure cache.
+    #[allow(clippy::too_many_arguments)]
+    fn drive_cylinder(
+        sys: &ModeSystem,
+        params: &CylinderParams,
+        cylinder: &mut CylinderState,
+        memory: &mut IntegratorMemory,
+        rest: &mut Option<[u64; 3]>,
+        (z0, z1, h): (&Vector, &Vector, f64),
+        inputs: &Held,
+    ) -> Result<(), String> {
+        if (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9) {
+            let key = [z0[XS].to_bits(), inputs.p_supply.to_bits(), inputs.f_ext.to_bits()];
+            if *rest == Some(key) {
+                return Ok(());
+            }
+            // At rest means an equilibrium, whatever the piece length: drifting less than
+            // 1e-10 of its scale in a second (a short piece must not make motion look still).
+            let f = cylinder::derivatives(params, cylinder, z0[XS], inputs.p_supply, inputs.f_ext);
+            if f.iter()
+                .zip(rosenbrock::STATE_SCALE.iter())
+                .all(|(d, scale)| d.abs() * REST_HORIZON <= 1e-10 * scale)
+            {
+                *rest = Some(key);
+                return Ok(());
+            }
+        }
+        *rest = None;
+        if h <= TINY_PIECE {
+            // Far below every cylinder time constant (|lambda| h < 2e-5): one Euler step.
+            let f = cylinder::derivatives(
+                params,
+                cylinder,
+                0.5 * (z0[XS] + z1[XS]),
+                inputs.p_supply,
+                inputs.f_ext,
+            );
+            let mut y = cylinder.to_array();
+            for (y, d) in y.iter_mut().zip(f) {
+                *y += h * d;
+            }
+            *cylinder = CylinderState::from_array(&y);
+            return Ok(());
+        }
+        let a = &sys.a;
+        let (az0, az1) = (a * z0, a * z1);
+        let path = SpoolPath {
+            h,
+            start: [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],
+            end: [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
+        };
+        let spool = |tau: f64| (path.position(tau), path.rate(tau));
+        rosenbrock::advance_with_rate(
+            params,
+            cylinder,
+            h,
+            inputs.p_supply,
+            inputs.f_ext,
+            spool,
+            memory,
+        )?;
+        Ok(())
+    }
+
+    /// Continuous evolution over `span` seconds with state events (driver mode changes).
+    fn evolve(
+        &mut self,
+        span_total: f64,
+        inputs: &Held,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        let mut z = self.z;
+        let mut done = 0.0;
+        let mut switches = 0;
+        // Guards that fired without changing the mode: passed, ignored for this segment.
+        let mut passed: u8 = 0;
+        'modes: while done < span_total {
+            let span = span_total - done;
+            let sys = &self.active;
+            // Between PWM edges the spans are short and irregular: a Taylor series beats
+            // exp() there. Otherwise equal sub-steps with a cached propagator.
+            let key = self.mode.index() + MODES.len() * self.stops.code();
+            let (substeps, h, matrix) = if self.mode == Mode::Switched {
+                (1, span, None)
+            } else {
+                let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span)?;
+                (substeps, h, Some(matrix))
+            };
+            for k in 0..substeps {
+                let settled = (key, h.to_bits(), z);
+                let mut next = match matrix {
+                    Some(_) if self.fixed_point == Some(settled) => z,
+                    Some(matrix) => matrix * z,
+                    None => taylor_propagate(sys, &z, h),
+                };
+                driver::project_onto(&self.params, &self.digital, &mut next, self.mode);
+                // A stable system that returns to its state bit for bit is at rest: no guard
+                // can have crossed on the way.
+                if next == z {
+                    if matrix.is_some() {
+                        self.fixed_point = Some(settled);
+                    }
+                } else if may_cross(sys, &z, &next, h, passed) {
+                    if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
+                        Self::drive_cylinder(
+                            sys,
+                            &self.params.cylinder,
+                            &mut self.cylinder,
+                            &mut self.cylinder_memory,
+                            &mut self.cylinder_rest,
+                            (&z, &at, tau),
+                            inputs,
+                        )?;
+                        z = at;
+                        done += k as f64 * h + tau;
+                        let before = self.mode;
+                        let changed = self.settle(&mut z);
+                        driver::count_switch(events, before, self.mode);
+                        passed = if changed { 0 } else { passed | 1 << guard };
+                        switches += 1;
+                        if switches > MAX_EVENTS_PER_STEP {
+                            return Err(format!(
+                                "driver switched mode more than {MAX_EVENTS_PER_STEP} times in one step (chattering); step refused"
+                            ));
+                        }
+                        continue 'modes;
+                    }
+                }
+                Self::drive_cylinder(
+                    sys,
+                    &self.params.cylinder,
+                    &mut self.cylinder,
+                    &mut self.cylinder_memory,
+                    &mut self.cylinder_rest,
+                    (&z, &next, h),
+                    inputs,
+                )?;
+                z = next;
+            }
+            break;
+        }
+        self.z = z;
+        Ok(())
+    }
+}

@@ -1,0 +1,364 @@
+//! Double-acting cylinder and its mechanical load, fed by the valve ports (see
+//! [`super::valve::port_flows`]).
+//!
+//! State `[p_A, p_B, x, v]`: chamber pressures, piston position (0 = mid-stroke, + = extension)
+//! and velocity. The spool position `x_s(t)` comes from the exact integrator of [`crate::physics`] as a function of
+//! time over each step; the Rosenbrock integrator ([`super::rosenbrock`]) advances it.
+//!
+//! # Modelling choices
+//! * **Pressures are gauge** (relative to atmosphere); the tank is at `hydraulics.p_tank` = 0.
+//! * **Valve ports** (critically centred, no lap, no leakage): for `x_s >= 0`
+//!   `Q_A = K3 x_s rsqrt(p_S - p_A)/sqrt(dp_r/2)` and `Q_B = K3 x_s rsqrt(p_B - p_T)/sqrt(dp_r/2)`,
+//!   mirrored for `x_s < 0`. `rsqrt` is a signed square root, replaced below `dp_laminar` by
+//!   the odd cubic that matches value and slope at `dp_laminar` (C1, slope `1.25/sqrt(dp_lam)`
+//!   at zero instead of infinite), so the Jacobian stays finite at a closed or balanced port.
+//!   Reverse flow (load pressure above supply) follows the same law with the sign reversed.
+//! * **Cavitation floor**: a chamber being emptied (net inflow < 0) has its effective bulk
+//!   modulus faded to zero over `hydraulics.dp_cavitation_band` above `hydraulics.p_cavitation`
+//!   (factor `u(2-u)`, `u = (p - p_cav)/band` clamped to [0, 1]: C1 where it starts, and it
+//!   vanishes at the floor). `p = p_cav` is then a barrier the exact solution cannot cross:
+//!   the chamber keeps growing at the floor (vapour/air) without the pressure falling further,
+//!   and refills as soon as the net inflow turns positive. A filling chamber is never slowed.
+//!   The flow law also reads `max(p, p_cav)`, and accepted steps clamp rounding-size
+//!   undershoot (reported in [`super::rosenbrock::Stats::floor_clamp`], which the tests require to be tiny).
+//!   Not modelled: the vapour volume that must be refilled before pressure rises again.
+//! * **Friction** (smooth, no stick-slip switching): `F = (Fc + (Fs - Fc) exp(-(v/vs)^2))
+//!   tanh(v/v_smooth) + b v`. `v_smooth` (0.1 mm/s) is the creep speed scale of the `tanh`; it
+//!   replaces the sign function so there is no sticking singularity. At rest `F = 0`.
+//! * **End stops**: spring-dampers beyond `+-S/2`; the damper acts only while penetrating, and
+//!   the total contact force is `max(0, k d + c d')`, so a separating stop never pulls.
+//! * **Leakage**: internal `C_leak (p_A - p_B)` from A to B, external `C_leak_external (p - p_T)`
+//!   from each chamber to the drain. Both default to 0.
+//! * **Equilibrium start**: with `x_s = 0` both chambers are sealed, so any pressure pair on the
+//!   force balance is an equilibrium. We take the one an (infinitesimally) underlapped real valve
+//!   would settle to at null: its four metering edges balance leak flows when
+//!   `p_A + p_B = p_S + p_T` (see [`equilibrium`]); with the force balance that fixes both.
+//!   Note: with this area ratio (A_B/A_A = 0.61) the no-load steady flow is NOT `K3 x_s`: equal
+//!   piston speeds need `Q_B/Q_A = A_B/A_A`, which shifts both port drops (about
+//!   `Q_A = 1.28 K3 x_s` at `p_S = dp_r`). `K3 x_s` is exact only for a symmetric cylinder.
+//!
+
+use super::params::{CylinderLoadParams, ValveParams};
+use super::valve::port_flows;
+
+/// Number of states: `[p_A, p_B, x, v]`.
+pub(crate) const N_STATES: usize = 4;
+pub(crate) const PA: usize = 0;
+pub(crate) const PB: usize = 1;
+pub(crate) const X: usize = 2;
+pub(crate) const V: usize = 3;
+
+pub(crate) type Vec4 = [f64; N_STATES];
+pub(crate) type Mat4 = [[f64; N_STATES]; N_STATES];
+
+/// Physical parameters of valve ports, cylinder and load, in SI (pressures gauge).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CylinderParams {
+    /// Piston (bore) diameter (m).
+    pub bore: f64,
+    /// Rod diameter (m); the rod is on the B side.
+    pub rod: f64,
+    /// Full stroke (m); x runs from -stroke/2 to +stroke/2.
+    pub stroke: f64,
+    /// Moving mass: piston, rod and load (kg).
+    pub mass: f64,
+    /// Effective bulk modulus of oil, hoses and walls (Pa).
+    pub beta: f64,
+    /// Dead volume per chamber at its end of stroke (m3).
+    pub v_dead: f64,
+    pub b_viscous: f64,
+    pub f_coulomb: f64,
+    /// Breakaway force (peak of the Stribeck curve) (N).
+    pub f_static: f64,
+    pub v_stribeck: f64,
+    /// Velocity scale of the tanh that replaces sign(v) in the Coulomb/Stribeck term (m/s).
+    pub v_friction_smooth: f64,
+    pub k_endstop: f64,
+    pub c_endstop: f64,
+    /// Internal (cross-piston) leakage A -> B per pressure difference (m3/(s.Pa)).
+    pub c_leak: f64,
+    /// External leakage from each chamber to the drain (at p_tank) (m3/(s.Pa)).
+    pub c_leak_external: f64,
+    /// Spool/bushing flow gain K3 (the same value as the valve's `valve.K3`) (m2/s).
+    pub k3: f64,
+    /// Total rated valve pressure drop at which the no-load flow is K3*x_s (Pa).
+    pub dp_rated: f64,
+    /// Port pressure drop below which the orifice law turns laminar (regularisation) (Pa).
+    pub dp_laminar: f64,
+    pub p_tank: f64,
+    /// Lowest chamber pressure (gauge) (Pa).
+    pub p_cavitation: f64,
+    /// Band above the floor over which an emptying chamber's bulk modulus fades out (Pa).
+    pub dp_cavitation_band: f64,
+}
+
+#[cfg(test)]
+impl Default for CylinderParams {
+    /// The start values of the variable table.
+    fn default() -> Self {
+        let p = crate::model::start_params();
+        CylinderParams::new(&p.cylinder, &p.valve).expect("start values are valid")
+    }
+}
+
+impl CylinderParams {
+    /// The hydraulic side's parameters: cylinder, load and fluid, with the valve's
+    /// metering-port data. Checks the rules between parameters (single values were
+    /// checked against their ranges at the model boundary).
+    pub(crate) fn new(
+        cylinder: &CylinderLoadParams,
+        valve: &ValveParams,
+    ) -> Result<CylinderParams, String> {
+        let c = cylinder;
+        let p = CylinderParams {
+            bore: c.bore,
+            rod: c.rod,
+            stroke: c.stroke,
+            mass: c.mass,
+            beta: c.beta,
+            v_dead: c.v_dead,
+            b_viscous: c.b_viscous,
+            f_coulomb: c.f_coulomb,
+            f_static: c.f_static,
+            v_stribeck: c.v_stribeck,
+            v_friction_smooth: c.v_friction_smooth,
+            k_endstop: c.k_endstop,
+            c_endstop: c.c_endstop,
+            c_leak: c.c_leak,
+            c_leak_external: c.c_leak_external,
+            k3: valve.k3,
+            dp_rated: valve.dp_rated,
+            dp_laminar: valve.dp_laminar,
+            p_tank: c.p_tank,
+            p_cavitation: c.p_cavitation,
+            dp_cavitation_band: c.dp_cavitation_band,
+        };
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// The rules between parameters.
+    pub(crate) fn validate(&self) -> Result<(), String> {
+        if !(self.k3.is_finite() && self.k3 > 0.0) {
+            return Err(format!("valve.K3 = {} rejected: must be positive", self.k3));
+        }
+        if self.rod >= self.bore {
+            return Err(format!(
+                "cylinder.rod = {} rejected: must be smaller than cylinder.bore = {}",
+                self.rod, self.bore
+            ));
+        }
+        if self.p_cavitation >= self.p_tank {
+            return Err(format!(
+                "hydraulics.p_cavitation = {} rejected: must be below hydraulics.p_tank = {}",
+                self.p_cavitation, self.p_tank
+            ));
+        }
+        Ok(())
+    }
+
+    /// Piston area on the A (cap) side (m2).
+    pub(crate) fn area_a(&self) -> f64 {
+        std::f64::consts::FRAC_PI_4 * self.bore * self.bore
+    }
+
+    /// Annulus area on the B (rod) side (m2).
+    pub(crate) fn area_b(&self) -> f64 {
+        self.area_a() - std::f64::consts::FRAC_PI_4 * self.rod * self.rod
+    }
+
+    #[cfg(test)]
+    /// Extension stall force p_S*A_A (B at tank) (N).
+    pub(crate) fn stall_force(&self, p_supply: f64) -> f64 {
+        (p_supply - self.p_tank) * self.area_a()
+    }
+}
+
+/// Chamber pressures (Pa, gauge), piston position (m) and velocity (m/s).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct CylinderState {
+    pub p_a: f64,
+    pub p_b: f64,
+    pub x: f64,
+    pub v: f64,
+}
+
+impl CylinderState {
+    pub(crate) fn to_array(self) -> [f64; N_STATES] {
+        [self.p_a, self.p_b, self.x, self.v]
+    }
+    pub(crate) fn from_array(y: &[f64; N_STATES]) -> CylinderState {
+        CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] }
+    }
+}
+
+/// Outputs of the hydraulic side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CylinderOutputs {
+    /// Flow into chamber A (m3/s).
+    pub q_a: f64,
+    /// Flow out of chamber B (m3/s).
+    pub q_b: f64,
+    pub p_a: f64,
+    pub p_b: f64,
+    pub x_piston: f64,
+    pub v_piston: f64,
+    /// p_A*A_A - p_B*A_B (N).
+    pub f_hydraulic: f64,
+}
+
+/// Rest state at mid-stroke for a centred valve: `p_A + p_B = p_S + p_T` (the null of an
+/// underlapped valve: with leak openings `u + d` and `u - d` on P->A / A->T and the reverse on
+/// the B side, both chambers balance when `p_A/(p_S - p_A) = r` and `p_B/(p_S - p_B) = 1/r`, i.e.
+/// `p_A + p_B = p_S` with the tank at 0), together with `p_A A_A - p_B A_B + F_ext = 0`.
+/// For F_ext = 0: `p_A = (p_S + p_T) A_B/(A_A + A_B)`. Loads the valve cannot hold with both
+/// pressures in `[p_T, p_S]` are clamped there (then the force balance is not met).
+pub(crate) fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) -> CylinderState {
+    let (area_a, area_b) = (params.area_a(), params.area_b());
+    let sum = p_supply + params.p_tank;
+    let (lo, hi) = (params.p_tank.min(p_supply), params.p_tank.max(p_supply));
+    let p_a = ((sum * area_b - f_ext) / (area_a + area_b)).clamp(lo, hi);
+    let p_b = ((p_a * area_a + f_ext) / area_b).clamp(lo, hi);
+    CylinderState { p_a, p_b, x: 0.0, v: 0.0 }
+}
+/// Friction force opposing motion, viscous part included (N).
+fn friction(params: &CylinderParams, v: f64) -> f64 {
+    let stribeck = (v / params.v_stribeck).powi(2);
+    let dry = params.f_coulomb + (params.f_static - params.f_coulomb) * (-stribeck).exp();
+    dry * (v / params.v_friction_smooth).tanh() + params.b_viscous * v
+}
+
+/// End-stop contact force on the piston, positive towards +x (N). Never pulls.
+fn endstop_force(params: &CylinderParams, x: f64, v: f64) -> f64 {
+    let half = 0.5 * params.stroke;
+    let beyond_top = x - half;
+    let beyond_bottom = -half - x;
+    if beyond_top > 0.0 {
+        -(params.k_endstop * beyond_top + params.c_endstop * v).max(0.0)
+    } else if beyond_bottom > 0.0 {
+        (params.k_endstop * beyond_bottom - params.c_endstop * v).max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// Factor on the bulk modulus of a chamber: 1 while filling; fades to 0 at the cavitation
+/// floor while emptying, so the pressure cannot pass the floor.
+fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64) -> f64 {
+    if net_inflow >= 0.0 {
+        return 1.0;
+    }
+    let u = ((p - params.p_cavitation) / params.dp_cavitation_band).clamp(0.0, 1.0);
+    u * (2.0 - u)
+}
+
+/// Chamber volumes never shrink below this fraction of the dead volume (only reachable with
+/// absurd end-stop penetration; keeps the pressure equations finite).
+pub(crate) const MIN_VOLUME_FRACTION: f64 = 1e-3;
+
+/// `[p_A', p_B', x', v']` for spool position `x_s`.
+pub(crate) fn derivatives(
+    params: &CylinderParams,
+    state: &CylinderState,
+    x_s: f64,
+    p_supply: f64,
+    f_ext: f64,
+) -> [f64; 4] {
+    let (area_a, area_b) = (params.area_a(), params.area_b());
+    let half = 0.5 * params.stroke;
+    let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
+    let volume_a = (params.v_dead + area_a * (state.x + half)).max(min_volume);
+    let volume_b = (params.v_dead + area_b * (half - state.x)).max(min_volume);
+    let (q_a, q_b) = port_flows(params, state, x_s, p_supply);
+    let q_internal = params.c_leak * (state.p_a - state.p_b);
+    let q_external_a = params.c_leak_external * (state.p_a - params.p_tank);
+    let q_external_b = params.c_leak_external * (state.p_b - params.p_tank);
+    let inflow_a = q_a - area_a * state.v - q_internal - q_external_a;
+    let inflow_b = -q_b + area_b * state.v + q_internal - q_external_b;
+    let dp_a = params.beta / volume_a * inflow_a * cavitation_factor(params, state.p_a, inflow_a);
+    let dp_b = params.beta / volume_b * inflow_b * cavitation_factor(params, state.p_b, inflow_b);
+    let force = state.p_a * area_a - state.p_b * area_b - friction(params, state.v)
+        + f_ext
+        + endstop_force(params, state.x, state.v);
+    [dp_a, dp_b, state.v, force / params.mass]
+}
+/// All outputs at a state.
+pub(crate) fn outputs(
+    params: &CylinderParams,
+    state: &CylinderState,
+    x_s: f64,
+    p_supply: f64,
+) -> CylinderOutputs {
+    let (q_a, q_b) = port_flows(params, state, x_s, p_supply);
+    CylinderOutputs {
+        q_a,
+        q_b,
+        p_a: state.p_a,
+        p_b: state.p_b,
+        x_piston: state.x,
+        v_piston: state.v,
+        f_hydraulic: state.p_a * params.area_a() - state.p_b * params.area_b(),
+    }
+}
+
+/// Time from `y` to the first end-stop contact switch within `(0, span]`, from the Taylor
+/// polynomial of the switching function (`x'' = f_V`, `x''' = (J f + f_t)_V` from the
+/// linearisation). Switches: `x` reaching `+-stroke/2` from outside the stop (the contact
+/// force jumps in by `c |v|`), and inside a stop the contact force `k d + c d'` crossing zero
+/// (separation or re-engagement: a kink). Leaving a stop is smooth (the force is already 0).
+pub(crate) fn next_contact_switch(
+    params: &CylinderParams,
+    y: &Vec4,
+    (f0, jac, f_t): (&Vec4, &Mat4, &Vec4),
+    span: f64,
+) -> Option<f64> {
+    let half = 0.5 * params.stroke;
+    let (x, v, a) = (y[X], y[V], f0[V]);
+    let jerk = (0..N_STATES).map(|j| jac[V][j] * f0[j]).sum::<f64>() + f_t[V];
+    let (k, c) = (params.k_endstop, params.c_endstop);
+    // Taylor coefficients [g, dg, d2g, d3g] of the switching function, positive inside the
+    // stop / in contact. For the contact force the third derivative is not available from
+    // the linearisation: that polynomial is quadratic.
+    let g = if x > half {
+        let s = k * (x - half) + c * v;
+        [s, k * v + c * a, k * a + c * jerk, 0.0]
+    } else if x < -half {
+        let s = k * (-half - x) - c * v;
+        [s, -k * v - c * a, -k * a - c * jerk, 0.0]
+    } else if x >= 0.0 {
+        [x - half, v, a, jerk]
+    } else {
+        [-half - x, -v, -a, -jerk]
+    };
+    let poly = |t: f64| g[0] + t * (g[1] + t * (0.5 * g[2] + t * g[3] / 6.0));
+    let slope = |t: f64| g[1] + t * (g[2] + t * 0.5 * g[3]);
+    let inside = g[0] > 0.0;
+    let crossed = |t: f64| (poly(t) > 0.0) != inside;
+    if !crossed(span) {
+        // A double crossing within the span (touch and leave) is not looked for.
+        return None;
+    }
+    // The crossing lies in [lo, hi]; Newton, safeguarded by bisection.
+    let (mut lo, mut hi) = (0.0, span);
+    let mut t = if g[1] != 0.0 { -g[0] / g[1] } else { 0.5 * span };
+    for _ in 0..60 {
+        if !(t > lo && t < hi) {
+            t = 0.5 * (lo + hi);
+        }
+        if crossed(t) {
+            hi = t;
+        } else {
+            lo = t;
+        }
+        if hi - lo <= 1e-12 * hi {
+            break;
+        }
+        let d = slope(t);
+        t = if d != 0.0 { t - poly(t) / d } else { 0.5 * (lo + hi) };
+    }
+    Some(hi)
+}
+
+#[cfg(test)]
+#[path = "cylinder_tests.rs"]
+mod tests;

@@ -1,0 +1,183 @@
+//! The typed boundary of the physics: parameters, inputs and outputs in SI, one field per
+//! variable of the table (the [`crate::model::Model`] fills and reads them).
+
+/// Coil driver topology (`driver`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriverKind {
+    IdealCurrent,
+    Voltage,
+    OpampPi,
+    Industrial,
+    HBridge,
+}
+
+impl DriverKind {
+    /// From the enumeration value of the table.
+    pub fn from_value(value: f64) -> Result<DriverKind, String> {
+        match value as i64 {
+            0 => Ok(DriverKind::IdealCurrent),
+            1 => Ok(DriverKind::Voltage),
+            2 => Ok(DriverKind::OpampPi),
+            3 => Ok(DriverKind::Industrial),
+            4 => Ok(DriverKind::HBridge),
+            other => Err(format!("driver = {other} is not available (0 to 4)")),
+        }
+    }
+}
+
+/// Which command drives the coil current (`control_mode`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControlMode {
+    Current,
+    Flow,
+    Position,
+}
+
+impl ControlMode {
+    /// From the enumeration value of the table.
+    pub fn from_value(value: f64) -> Result<ControlMode, String> {
+        match value as i64 {
+            0 => Ok(ControlMode::Current),
+            1 => Ok(ControlMode::Flow),
+            2 => Ok(ControlMode::Position),
+            other => Err(format!("control_mode = {other} is not available (0, 1 or 2)")),
+        }
+    }
+}
+
+/// A continuous PI current loop with a slew-rate limited output (op-amp or industrial).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PiDriverParams {
+    /// Proportional gain, V/A.
+    pub kp: f64,
+    /// Integral gain, V/(A s).
+    pub ki: f64,
+    /// Output slew-rate limit, V/s.
+    pub slew_rate: f64,
+}
+
+/// H-bridge with PWM and a digital PI current loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HBridgeParams {
+    pub f_pwm: f64,
+    pub f_sample: f64,
+    pub kp: f64,
+    pub ki: f64,
+    /// Adds (R + R_sense) i_cmd to the PI output.
+    pub feedforward: bool,
+}
+
+/// Torque-motor coil.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoilParams {
+    /// Apparent inductance, H.
+    pub inductance: f64,
+    /// Coil resistance, Ohm.
+    pub resistance: f64,
+    /// Current-sense resistor in series, Ohm.
+    pub r_sense: f64,
+    /// Back-EMF constant on the flapper velocity, V s/m.
+    pub k_backemf: f64,
+}
+
+/// Moog 30 two-stage valve: first stage, spool, travel stops and metering ports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValveParams {
+    pub k1: f64,
+    pub kf: f64,
+    pub kw: f64,
+    pub k2: f64,
+    pub k3: f64,
+    pub spool_area: f64,
+    pub zeta: f64,
+    /// Natural frequency of the first stage, Hz.
+    pub f_n: f64,
+    /// Travel limits, m (0: none).
+    pub x_flapper_max: f64,
+    pub x_spool_max: f64,
+    /// Total rated pressure drop at which the no-load flow is K3 x_s, Pa.
+    pub dp_rated: f64,
+    /// Port drop below which the orifice law is regularised, Pa.
+    pub dp_laminar: f64,
+}
+
+/// Cylinder, load, leakage and fluid (pressures gauge).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CylinderLoadParams {
+    pub bore: f64,
+    pub rod: f64,
+    pub stroke: f64,
+    pub mass: f64,
+    pub beta: f64,
+    pub v_dead: f64,
+    pub b_viscous: f64,
+    pub f_coulomb: f64,
+    pub f_static: f64,
+    pub v_stribeck: f64,
+    pub v_friction_smooth: f64,
+    pub k_endstop: f64,
+    pub c_endstop: f64,
+    pub c_leak: f64,
+    pub c_leak_external: f64,
+    pub p_tank: f64,
+    pub p_cavitation: f64,
+    pub dp_cavitation_band: f64,
+}
+
+/// Gains (Kp, Ki, Kd) of a PID.
+pub type PidGains = [f64; 3];
+
+/// Outer flow and position loops.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OuterLoopParams {
+    pub f_sample: f64,
+    /// Limit of the current command, A.
+    pub i_max: f64,
+    pub flow: PidGains,
+    pub position: PidGains,
+}
+
+/// Every parameter of the model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    pub driver: DriverKind,
+    pub control_mode: ControlMode,
+    pub opamp: PiDriverParams,
+    /// Op-amp output stage drop: its output saturates at +-(V_supply - V_drop), V.
+    pub opamp_v_drop: f64,
+    pub industrial: PiDriverParams,
+    pub hbridge: HBridgeParams,
+    pub coil: CoilParams,
+    pub valve: ValveParams,
+    pub cylinder: CylinderLoadParams,
+    pub outer_loop: OuterLoopParams,
+}
+
+/// Inputs, held constant over a communication step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Inputs {
+    pub i_ref: f64,
+    pub v_supply: f64,
+    pub p_supply: f64,
+    pub f_ext: f64,
+    pub q_ref: f64,
+    pub x_ref: f64,
+}
+
+/// Outputs at the current state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Outputs {
+    pub i_coil: f64,
+    pub u_driver: f64,
+    pub driver_saturated: bool,
+    pub x_flapper: f64,
+    pub x_spool: f64,
+    pub q_valve: f64,
+    pub q_a: f64,
+    pub q_b: f64,
+    pub p_a: f64,
+    pub p_b: f64,
+    pub x_piston: f64,
+    pub v_piston: f64,
+    pub f_hydraulic: f64,
+}

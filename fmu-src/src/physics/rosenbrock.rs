@@ -1,0 +1,434 @@
+//! Rosenbrock integrator of the cylinder ([`super::cylinder`]).
+//!
+//! Rodas4 (Hairer & Wanner, *Solving ODEs II*, IV.7; coefficients of `rodas.f`, METH = 1):
+//! a 6-stage Rosenbrock method of order 4, stiffly accurate and L-stable, with an embedded
+//! order-3 solution for error control. Why implicit: the Jacobian's stiff modes are not rare
+//! corners but ordinary operating states (eigenvalues measured in `tests::jacobian_eigenvalues`):
+//! at rest the friction tanh gives `-6.0e4 1/s` (`~ -Fs/(m v_smooth)`); pressed on the end stop
+//! `-1.4e5, -6.2e4, -1.6e4` (laminar port near supply, friction); a port in its laminar region
+//! `-6e4`; during an impact the contact mode `-1.07e3 +- 4.4e3i` plus `-2.7e4`; moving at rated
+//! flow only `-1.3e4, -1.9e3, -4.0e2`. An explicit method would sit on its stability boundary
+//! (`|lambda h| < 3.3`: steps of 2..50 us) in most of these; Rodas4 takes steps set by accuracy
+//! only: one step per 0.1 ms call at rest, in steady motion and pressed on a stop. Order 4
+//! keeps the step count low at the 1e-8 tolerance.
+//! The 4x4 Jacobian and `df/dt = df/dx_s x_s'` are analytic (`linearise`, checked against
+//! differences in `tests::analytic_jacobian_matches_finite_differences`); the linear systems
+//! use a hand-written 4x4 LU with partial pivoting. A step that the call boundary cuts to at
+//! most half the controller's size first tries Rodas3 (Sandu et al. 1997; 4 stages, 2 model
+//! evaluations after the linearisation) and keeps it only if its own embedded estimate passes
+//! the same tolerance. Steps are cut to land on the end-stop contact switches (x reaching
+//! `+-S/2`, the contact force crossing zero), predicted from the Taylor polynomial that the
+//! linearisation gives, instead of rejecting their way across the jump in `v'`.
+//! Everything lives on the stack: no allocation in [`advance_with_rate`].
+
+use super::cylinder::{
+    derivatives, next_contact_switch, CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB,
+};
+use super::cylinder_jacobian::linearise;
+use super::lu4::Lu4;
+
+/// A Rosenbrock method in the transformed form of Hairer & Wanner and of KPP (Sandu et al.):
+/// `(I/(h gamma) - J) k_i = f(t + c_i h, y + sum_j a_ij k_j) + sum_j (c_ij/h) k_j + h d_i f_t`,
+/// `y_new = y + sum_j m_j k_j`, error estimate `sum_j e_j k_j`. `new_f[i] = false`: stage i
+/// evaluates `f` at the same point as stage i - 1 (reused, no model evaluation).
+struct Rosenbrock<const S: usize> {
+    gamma: f64,
+    nodes: [f64; S],
+    d: [f64; S],
+    a: [[f64; S]; S],
+    c: [[f64; S]; S],
+    m: [f64; S],
+    e: [f64; S],
+    new_f: [bool; S],
+}
+
+/// Rodas4 (Hairer & Wanner's `rodas.f`, METH = 1): order 4, embedded order 3, stiffly
+/// accurate, L-stable; 6 stages, 5 model evaluations besides the linearisation point.
+const RODAS4: Rosenbrock<6> = {
+    const A6: [f64; 6] =
+        [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.687886036105895, 1.0, 0.0];
+    Rosenbrock {
+        gamma: 0.25,
+        nodes: [0.0, 0.386, 0.21, 0.63, 1.0, 1.0],
+        d: [0.25, -0.1043, 0.1035, -0.3620000000000023e-01, 0.0, 0.0],
+        a: [
+            [0.0; 6],
+            [1.544, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [0.9466785280815826, 0.2557011698983284, 0.0, 0.0, 0.0, 0.0],
+            [3.314825187068521, 2.896124015972201, 0.9986419139977817, 0.0, 0.0, 0.0],
+            [1.221224509226641, 6.019134481288629, 12.53708332932087, -0.687886036105895, 0.0, 0.0],
+            // Stage 6 is evaluated at the embedded solution y_5 + k_5.
+            A6,
+        ],
+        c: [
+            [0.0; 6],
+            [-5.6688, 0.0, 0.0, 0.0, 0.0, 0.0],
+            [-2.430093356833875, -0.2063599157091915, 0.0, 0.0, 0.0, 0.0],
+            [-0.1073529058151375, -9.594562251023355, -20.47028614809616, 0.0, 0.0, 0.0],
+            [7.496443313967647, -10.24680431464352, -33.99990352819905, 11.7089089320616, 0.0, 0.0],
+            [
+                8.083246795921522,
+                -7.981132988064893,
+                -31.52159432874371,
+                16.31930543123136,
+                -6.058818238834054,
+                0.0,
+            ],
+        ],
+        m: [A6[0], A6[1], A6[2], A6[3], 1.0, 1.0],
+        e: [0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        new_f: [true; 6],
+    }
+};
+
+/// Rodas3 (Sandu, Verwer, Blom, Spee, Carmichael, Potra 1997, as in KPP): order 3, embedded
+/// order 2, stiffly accurate, L-stable; 4 stages, 2 model evaluations besides the
+/// linearisation point (stage 2 reuses `f(y)`).
+const RODAS3: Rosenbrock<4> = Rosenbrock {
+    gamma: 0.5,
+    nodes: [0.0, 0.0, 1.0, 1.0],
+    d: [0.5, 1.5, 0.0, 0.0],
+    a: [[0.0; 4], [0.0; 4], [2.0, 0.0, 0.0, 0.0], [2.0, 0.0, 1.0, 0.0]],
+    c: [[0.0; 4], [4.0, 0.0, 0.0, 0.0], [1.0, -1.0, 0.0, 0.0], [1.0, -1.0, -8.0 / 3.0, 0.0]],
+    m: [2.0, 0.0, 1.0, 1.0],
+    e: [0.0, 0.0, 0.0, 1.0],
+    new_f: [true, false, true, true],
+};
+
+/// Step controller limits (as in `rodas.f`): the step changes by a factor in [0.2, 6].
+const SAFETY: f64 = 0.9;
+const MIN_FACTOR: f64 = 0.2;
+const MAX_FACTOR: f64 = 6.0;
+/// First step when nothing is known yet (s).
+const INITIAL_STEP: f64 = 1e-6;
+/// Refuse a call that needs more internal steps than this (rejected ones included).
+const MAX_STEPS_PER_CALL: u32 = 100_000;
+
+/// Error weights: the error of state i is measured against `rtol * max(|y_i|, STATE_SCALE[i])`.
+pub(crate) const STATE_SCALE: [f64; N_STATES] = [1.0e6, 1.0e6, 1.0e-2, 1.0e-1];
+
+/// What the integrator carries from one call to the next.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct IntegratorMemory {
+    /// Relative tolerance on the scaled states.
+    pub rtol: f64,
+    /// Step size to try next (s); 0 = not known yet.
+    pub h_next: f64,
+    /// Last accepted step and its error, for Gustafsson's predictive controller.
+    h_accepted: f64,
+    err_accepted: f64,
+}
+
+impl Default for IntegratorMemory {
+    fn default() -> Self {
+        IntegratorMemory::new(1e-8)
+    }
+}
+
+impl IntegratorMemory {
+    pub(crate) fn new(rtol: f64) -> IntegratorMemory {
+        IntegratorMemory { rtol, h_next: 0.0, h_accepted: 0.0, err_accepted: 1.0 }
+    }
+    /// `[rtol, h_next, h_accepted, err_accepted]`, for serialising the instance state.
+    pub(crate) fn to_array(self) -> [f64; 4] {
+        [self.rtol, self.h_next, self.h_accepted, self.err_accepted]
+    }
+    pub(crate) fn from_array(a: &[f64; 4]) -> IntegratorMemory {
+        IntegratorMemory { rtol: a[0], h_next: a[1], h_accepted: a[2], err_accepted: a[3] }
+    }
+}
+
+/// Work done in one call of [`advance_with_rate`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Stats {
+    pub accepted: u32,
+    pub rejected: u32,
+    /// Model evaluations (an analytic linearisation counts as one, and in `jacobian_evaluations`).
+    pub function_evaluations: u32,
+    pub jacobian_evaluations: u32,
+    /// Accepted steps taken with Rodas3 (included in `accepted`), and Rodas3 attempts whose
+    /// error estimate failed (followed by Rodas4 on the same step; not in `rejected`).
+    pub cheap: u32,
+    pub cheap_failed: u32,
+    /// Accepted steps cut short to land on an end-stop contact switch (included in `accepted`).
+    pub landings: u32,
+    /// Largest amount a pressure was lifted back to the cavitation floor after a step (Pa).
+    pub floor_clamp: f64,
+}
+
+/// Advances the state by `h` seconds; `x_s(tau)` is the spool position at `tau` in `[0, h]`.
+/// Its rate (for `df/dt`) is taken by differencing `x_s` alone (no extra model evaluation);
+/// the physics core uses [`advance_with_rate`] with the exact rate, the tests this form
+/// for arbitrary spool paths. On error the state is left as it was.
+#[cfg(test)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn advance(
+    params: &CylinderParams,
+    state: &mut CylinderState,
+    h: f64,
+    p_supply: f64,
+    f_ext: f64,
+    x_s: impl Fn(f64) -> f64,
+    work: &mut IntegratorMemory,
+) -> Result<Stats, String> {
+    // Central difference inside [0, h], one-sided second order at its ends: O(1e-10) relative
+    // error for a smooth path, which only enters through the h d_i f_t terms of the stages.
+    let dt = 6e-6 * h;
+    let spool = |tau: f64| {
+        let value = x_s(tau);
+        let rate = if tau - dt >= 0.0 && tau + dt <= h {
+            (x_s(tau + dt) - x_s(tau - dt)) / (2.0 * dt)
+        } else if tau + 2.0 * dt <= h {
+            (-3.0 * value + 4.0 * x_s(tau + dt) - x_s(tau + 2.0 * dt)) / (2.0 * dt)
+        } else {
+            (3.0 * value - 4.0 * x_s(tau - dt) + x_s(tau - 2.0 * dt)) / (2.0 * dt)
+        };
+        (value, rate)
+    };
+    advance_with_rate(params, state, h, p_supply, f_ext, spool, work)
+}
+
+/// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn advance_with_rate(
+    params: &CylinderParams,
+    state: &mut CylinderState,
+    h: f64,
+    p_supply: f64,
+    f_ext: f64,
+    spool: impl Fn(f64) -> (f64, f64),
+    work: &mut IntegratorMemory,
+) -> Result<Stats, String> {
+    let mut stats = Stats::default();
+    if h == 0.0 {
+        return Ok(stats);
+    }
+    if !(h.is_finite() && h > 0.0) {
+        return Err(format!("hydraulics: step {h} s is not a positive finite number"));
+    }
+    let model = Rhs { params, p_supply, f_ext, spool: &spool };
+    let mut y = state.to_array();
+    let mut tau = 0.0;
+    let mut step = if work.h_next > 0.0 { work.h_next } else { INITIAL_STEP };
+    let mut rejected_last = false;
+    // The linearisation at (tau, y), kept across rejected attempts from the same point.
+    let mut lin: Option<Linearisation> = None;
+    // Consecutive steps cut to a contact switch; bounded so a switch the state cannot be
+    // moved across (rounding) falls back to plain error control.
+    let mut landings = 0;
+    loop {
+        if stats.accepted + stats.rejected >= MAX_STEPS_PER_CALL {
+            return Err(format!(
+                "hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {h} s"
+            ));
+        }
+        // The last step lands exactly on h; remember the untruncated size for the next call.
+        let wanted = step;
+        let mut last = tau + step * 1.0001 >= h;
+        if last {
+            step = h - tau;
+        }
+        let here = match lin {
+            Some(ref l) => l,
+            None => lin.insert(model.linearise(tau, &y, &mut stats)),
+        };
+        // Step onto the next end-stop contact switch instead of across it.
+        let mut landing = false;
+        if landings < MAX_LANDINGS {
+            if let Some(t_switch) =
+                next_contact_switch(params, &y, (&here.f0, &here.jac, &here.f_t), step)
+            {
+                let t_land = if t_switch <= 1e-3 * wanted {
+                    // Close: the Taylor prediction is exact to far below this margin.
+                    t_switch * (1.0 + 1e-6)
+                } else {
+                    // Far: land just short; the next step, from very close, lands on it.
+                    t_switch * (1.0 - 1e-4)
+                };
+                let t_land = t_land.max(1e-12 * h);
+                if t_land < step {
+                    step = t_land;
+                    last = false;
+                    landing = true;
+                }
+            }
+        }
+        if step <= 1e-14 * h.max(1e-6) {
+            return Err(format!("hydraulics: step size underflow at {tau} s into a step of {h} s"));
+        }
+        // A step the call boundary cut to at most half of what Rodas4's controller wants is
+        // smooth at this size: try the cheaper Rodas3 under the same tolerance first and keep
+        // its result only if its own error estimate passes; else Rodas4 from the same
+        // linearisation. The controller only ever learns from Rodas4 steps.
+        if last && step * 2.0 <= wanted {
+            let (y3, err3) =
+                rosenbrock_step(&RODAS3, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
+            if err3 <= 1.0 {
+                stats.accepted += 1;
+                stats.cheap += 1;
+                y = y3;
+                clamp_to_floor(params, &mut y, &mut stats);
+                work.h_next = wanted;
+                break;
+            }
+            stats.cheap_failed += 1;
+        }
+        let (y_new, err) =
+            rosenbrock_step(&RODAS4, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
+        if err <= 1.0 {
+            stats.accepted += 1;
+            lin = None;
+            y = y_new;
+            clamp_to_floor(params, &mut y, &mut stats);
+            tau += step;
+            if landing {
+                // A step cut short by a switch says nothing about the step size past it:
+                // continue with what the controller wanted before.
+                stats.landings += 1;
+                landings += 1;
+                step = wanted.min(h);
+                continue;
+            }
+            landings = 0;
+            let mut factor = (err.powf(0.25) / SAFETY).clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR);
+            // Gustafsson: also use the trend of the error between accepted steps.
+            if work.h_accepted > 0.0 {
+                let predictive =
+                    (work.h_accepted / step) * (err * err / work.err_accepted).powf(0.25) / SAFETY;
+                factor = factor.max(predictive.clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR));
+            }
+            work.h_accepted = step;
+            work.err_accepted = err.max(1e-2);
+            let mut next = step / factor;
+            if rejected_last {
+                next = next.min(step);
+            }
+            rejected_last = false;
+            if last {
+                work.h_next = if next >= step { next.max(wanted) } else { next };
+                break;
+            }
+            step = next.min(h);
+        } else {
+            stats.rejected += 1;
+            rejected_last = true;
+            let factor = (err.powf(0.25) / SAFETY).min(1.0 / MIN_FACTOR);
+            step /= factor;
+        }
+    }
+    if !y.iter().all(|v| v.is_finite()) {
+        return Err("hydraulics: the state became non-finite; step refused".into());
+    }
+    *state = CylinderState::from_array(&y);
+    Ok(stats)
+}
+
+/// Consecutive steps [`advance_with_rate`] cuts to a contact switch before it gives up on it.
+const MAX_LANDINGS: u32 = 4;
+
+/// Lifts rounding-size undershoot of the cavitation floor back to it (recorded in `stats`).
+fn clamp_to_floor(params: &CylinderParams, y: &mut Vec4, stats: &mut Stats) {
+    for k in [PA, PB] {
+        if y[k] < params.p_cavitation {
+            stats.floor_clamp = stats.floor_clamp.max(params.p_cavitation - y[k]);
+            y[k] = params.p_cavitation;
+        }
+    }
+}
+
+/// The right-hand side over one call: parameters, inputs and the spool path.
+struct Rhs<'a, S: Fn(f64) -> (f64, f64)> {
+    params: &'a CylinderParams,
+    p_supply: f64,
+    f_ext: f64,
+    spool: &'a S,
+}
+
+impl<S: Fn(f64) -> (f64, f64)> Rhs<'_, S> {
+    fn f(&self, tau: f64, y: &Vec4, stats: &mut Stats) -> Vec4 {
+        stats.function_evaluations += 1;
+        derivatives(
+            self.params,
+            &CylinderState::from_array(y),
+            (self.spool)(tau).0,
+            self.p_supply,
+            self.f_ext,
+        )
+    }
+
+    /// `f`, `df/dy` and `df/dt` at `(tau, y)`, analytic.
+    fn linearise(&self, tau: f64, y: &Vec4, stats: &mut Stats) -> Linearisation {
+        stats.function_evaluations += 1;
+        stats.jacobian_evaluations += 1;
+        let (x_s, rate) = (self.spool)(tau);
+        let (f0, jac, f_xs) = linearise(self.params, y, x_s, self.p_supply, self.f_ext);
+        Linearisation { f0, jac, f_t: f_xs.map(|d| d * rate) }
+    }
+}
+
+/// The model linearised at the start of a step, shared by the methods tried on it.
+struct Linearisation {
+    f0: Vec4,
+    jac: Mat4,
+    f_t: Vec4,
+}
+
+/// One step of `method` from `(tau, y)` of size `h`: the new state and its scaled error norm.
+#[allow(clippy::needless_range_loop)]
+fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
+    method: &Rosenbrock<S>,
+    model: &Rhs<'_, F>,
+    lin: &Linearisation,
+    (tau, y, h): (f64, &Vec4, f64),
+    rtol: f64,
+    stats: &mut Stats,
+) -> Result<(Vec4, f64), String> {
+    // W = I/(h gamma) - J
+    let mut w = lin.jac;
+    for (i, row) in w.iter_mut().enumerate() {
+        for value in row.iter_mut() {
+            *value = -*value;
+        }
+        row[i] += 1.0 / (h * method.gamma);
+    }
+    let lu = Lu4::factor(w).ok_or_else(|| "hydraulics: singular iteration matrix".to_string())?;
+    let mut k = [[0.0; N_STATES]; S];
+    let mut fi = lin.f0;
+    for stage in 0..S {
+        if stage > 0 && method.new_f[stage] {
+            let mut yi = *y;
+            for j in 0..stage {
+                for n in 0..N_STATES {
+                    yi[n] += method.a[stage][j] * k[j][n];
+                }
+            }
+            fi = model.f(tau + method.nodes[stage] * h, &yi, stats);
+        }
+        let mut rhs = fi;
+        for n in 0..N_STATES {
+            rhs[n] += h * method.d[stage] * lin.f_t[n];
+            for j in 0..stage {
+                rhs[n] += method.c[stage][j] / h * k[j][n];
+            }
+        }
+        k[stage] = lu.solve(rhs);
+    }
+    let mut y_new = *y;
+    let mut sum = 0.0;
+    for n in 0..N_STATES {
+        let mut error = 0.0;
+        for j in 0..S {
+            y_new[n] += method.m[j] * k[j][n];
+            error += method.e[j] * k[j][n];
+        }
+        let scale = rtol * y[n].abs().max(y_new[n].abs()).max(STATE_SCALE[n]);
+        sum += (error / scale).powi(2);
+    }
+    let err = (sum / N_STATES as f64).sqrt();
+    // A non-finite stage is an error estimate of infinity: the step is rejected and shrunk.
+    Ok((y_new, if err.is_finite() { err } else { f64::INFINITY }))
+}
+
+#[cfg(test)]
+#[path = "rosenbrock_tests.rs"]
+pub(crate) mod tests;

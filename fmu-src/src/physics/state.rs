@@ -1,0 +1,35 @@
+//! The augmented state of driver, coil and valve: six physical states and three
+//! constants held over a step, so that every mode is `z' = A z`, linear and homogeneous.
+
+use nalgebra::{SMatrix, SVector};
+
+/// Augmented state size: 6 physical states + 3 constants.
+pub(crate) const N: usize = 9;
+pub(crate) type Mat = SMatrix<f64, N, N>;
+pub(crate) type Vector = SVector<f64, N>;
+
+/// Coil current, A.
+pub(crate) const I: usize = 0;
+/// PI integrator output Ki integral(e), V.
+pub(crate) const UI: usize = 1;
+/// Driver output voltage, V.
+pub(crate) const U: usize = 2;
+/// Flapper displacement, m.
+pub(crate) const XF: usize = 3;
+/// Flapper velocity, m/s.
+pub(crate) const VF: usize = 4;
+/// Spool displacement, m.
+pub(crate) const XS: usize = 5;
+/// Current command (constant over a step), A.
+pub(crate) const IREF: usize = 6;
+/// Rail voltage V_supply - V_drop (constant over a step), V.
+pub(crate) const VMAX: usize = 7;
+/// The constant 1, for affine terms.
+pub(crate) const ONE: usize = 8;
+
+/// Row vector e_k.
+pub(crate) fn unit(k: usize) -> Vector {
+    let mut r = Vector::zeros();
+    r[k] = 1.0;
+    r
+}

@@ -1,0 +1,67 @@
+//! The physics' part of the instance state as bytes (the model frames and checks them):
+//! driver mode, valve stops, the augmented state, the digital loops, the cylinder and its
+//! integrator's memory. Caches are not part of the state.
+
+use super::cylinder::{CylinderState, N_STATES};
+use super::driver::MODES;
+use super::hbridge::Digital;
+use super::outer_loop::OuterLoop;
+use super::rosenbrock::IntegratorMemory;
+use super::state::N;
+use super::valve::Stops;
+use super::{Inputs, Params, Physics};
+use crate::model::Reader;
+
+impl Physics {
+    pub(crate) fn write_bytes(&self, out: &mut Vec<u8>) {
+        out.push(self.mode.index() as u8);
+        out.push(self.stops.code() as u8);
+        for x in self.z.iter() {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+        self.digital.write_bytes(out);
+        self.outer.write_bytes(out);
+        for x in self.cylinder.to_array().iter().chain(self.cylinder_memory.to_array().iter()) {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+
+    /// Inverse of [`Physics::write_bytes`], for these parameters and inputs.
+    pub(crate) fn read_bytes(
+        params: &Params,
+        inputs: &Inputs,
+        r: &mut Reader,
+    ) -> Result<Physics, String> {
+        let mode_index = r.u8()? as usize;
+        let mode = *MODES
+            .get(mode_index)
+            .ok_or_else(|| format!("state has unknown driver mode {mode_index}"))?;
+        let stops = Stops::from_code(r.u8()?)?;
+        let mut physics = Physics::start(params, inputs, 0.0)
+            .map_err(|e| format!("state holds invalid parameters: {e}"))?;
+        for k in 0..N {
+            physics.z[k] = r.f64()?;
+        }
+        physics.digital = Digital::read_bytes(r)?;
+        physics.outer = OuterLoop::read_bytes(r)?;
+        let mut cylinder = [0.0; N_STATES];
+        for x in cylinder.iter_mut() {
+            *x = r.f64()?;
+        }
+        let mut memory = [0.0; 4];
+        for x in memory.iter_mut() {
+            *x = r.f64()?;
+        }
+        if !cylinder.iter().chain(memory.iter()).all(|x| x.is_finite()) {
+            return Err("state holds non-finite cylinder values".into());
+        }
+        physics.cylinder = CylinderState::from_array(&cylinder);
+        physics.cylinder_memory = IntegratorMemory::from_array(&memory);
+        if !physics.z.iter().all(|x| x.is_finite()) {
+            return Err("state holds non-finite values".into());
+        }
+        (physics.mode, physics.stops) = (mode, stops);
+        physics.active = physics.systems[mode.index()].with_stops(&physics.params, stops);
+        Ok(physics)
+    }
+}

@@ -1,0 +1,312 @@
+//! Moog 30 two-stage servo valve.
+//!
+//! * First stage (torque motor, flapper, nozzles) as a second-order system:
+//!   `x_f'' + 2 zeta wn x_f' + wn^2 x_f = wn^2 (K1 i - Kw x_s) / Kf`.
+//! * Spool, moved by the hydraulic amplifier: `x_s' = (K2 / A_s) x_f`.
+//! * Optional travel stops (`valve.x_flapper_max`, `valve.x_spool_max`; the paper's linear
+//!   model has none): a part reaching its limit is held there (inelastic impact) while it is
+//!   driven outwards, and leaves when the drive turns back.
+//! * Metering ports (critically centred): the orifice law of [`port_flows`], which feeds the
+//!   cylinder ([`super::cylinder`]).
+
+use super::cylinder::{CylinderParams, CylinderState};
+use super::state::{unit, Mat, Vector, I, ONE, VF, XF, XS};
+use super::Coefficients;
+
+/// Writes the first-stage and spool rows of `z' = A z`.
+pub(crate) fn valve_rows(c: &Coefficients, a: &mut Mat) {
+    let wn2 = c.wn * c.wn;
+    a[(XF, VF)] = 1.0;
+    a[(VF, XF)] = -wn2;
+    a[(VF, VF)] = -2.0 * c.zeta * c.wn;
+    a[(VF, I)] = wn2 * c.k1 / c.kf;
+    a[(VF, XS)] = -wn2 * c.kw / c.kf;
+    a[(XS, XF)] = c.k2 / c.spool_area;
+}
+
+/// Flapper and spool at a travel stop: -1 lower, 0 free, +1 upper.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Stops {
+    pub flapper: i8,
+    pub spool: i8,
+}
+
+impl Stops {
+    pub(crate) fn code(self) -> usize {
+        ((self.flapper + 1) * 3 + self.spool + 1) as usize
+    }
+
+    /// Inverse of [`Stops::code`].
+    pub(crate) fn from_code(code: u8) -> Result<Stops, String> {
+        if code > 8 {
+            return Err(format!("state has unknown valve stop code {code}"));
+        }
+        let code = code as i8;
+        Ok(Stops { flapper: code / 3 - 1, spool: code % 3 - 1 })
+    }
+}
+
+/// Whether the valve has travel stops at all.
+pub(crate) fn has_stops(c: &Coefficients) -> bool {
+    c.x_flapper_max > 0.0 || c.x_spool_max > 0.0
+}
+
+/// Holds the parts at a stop: their rows of `z' = A z` are zeroed.
+pub(crate) fn hold_at_stops(stops: Stops, a: &mut Mat) {
+    if stops.flapper != 0 {
+        a.row_mut(XF).fill(0.0);
+        a.row_mut(VF).fill(0.0);
+    }
+    if stops.spool != 0 {
+        a.row_mut(XS).fill(0.0);
+    }
+}
+
+/// The stop guards: for a free part, reaching either stop; for a held part, the drive
+/// turning back. `flapper_accel` is the free system's flapper acceleration row.
+pub(crate) fn stop_guards(
+    c: &Coefficients,
+    stops: Stops,
+    flapper_accel: Vector,
+    mut push_guard: impl FnMut(Vector),
+) {
+    let one = unit(ONE);
+    if c.x_flapper_max > 0.0 {
+        match stops.flapper {
+            0 => {
+                push_guard(unit(XF) - c.x_flapper_max * one);
+                push_guard(-unit(XF) - c.x_flapper_max * one);
+            }
+            // Leaves the stop when the torque pulls it back.
+            side => push_guard(-(side as f64) * flapper_accel),
+        }
+    }
+    if c.x_spool_max > 0.0 {
+        match stops.spool {
+            0 => {
+                push_guard(unit(XS) - c.x_spool_max * one);
+                push_guard(-unit(XS) - c.x_spool_max * one);
+            }
+            // Leaves the stop when the flapper drives it back.
+            side => push_guard(-(side as f64) * unit(XF)),
+        }
+    }
+}
+
+/// Puts `z` on the stops: an inelastic impact takes the flapper's outward velocity at its
+/// limit; then the stops consistent with `z` (`free_a`: the system without stops) hold their
+/// parts at the limit.
+pub(crate) fn settle_stops(c: &Coefficients, free_a: &Mat, z: &mut Vector) -> Stops {
+    let reach = c.x_flapper_max * (1.0 - 1e-12);
+    if c.x_flapper_max > 0.0 && (z[XF] >= reach && z[VF] > 0.0 || z[XF] <= -reach && z[VF] < 0.0) {
+        z[XF] = z[XF].clamp(-c.x_flapper_max, c.x_flapper_max);
+        z[VF] = 0.0;
+    }
+    let stops = consistent_stops(c, free_a, z);
+    if stops.flapper != 0 {
+        z[XF] = stops.flapper as f64 * c.x_flapper_max;
+        z[VF] = 0.0;
+    }
+    if stops.spool != 0 {
+        z[XS] = stops.spool as f64 * c.x_spool_max;
+    }
+    stops
+}
+
+/// Which travel stops hold the valve at `z`: a part at its limit stays there while it is
+/// driven outwards (flapper: its free acceleration; spool: the flapper's sign).
+fn consistent_stops(c: &Coefficients, free_a: &Mat, z: &Vector) -> Stops {
+    let mut at_rest = *z;
+    at_rest[VF] = 0.0;
+    let flapper_accel = free_a.row(VF).transpose().dot(&at_rest);
+    let side = |x: f64, limit: f64, drive: f64| -> i8 {
+        let reach = limit * (1.0 - 1e-12);
+        if limit <= 0.0 {
+            0
+        } else if x >= reach && drive > 0.0 {
+            1
+        } else if x <= -reach && drive < 0.0 {
+            -1
+        } else {
+            0
+        }
+    };
+    Stops {
+        flapper: side(z[XF], c.x_flapper_max, flapper_accel),
+        spool: side(z[XS], c.x_spool_max, z[XF]),
+    }
+}
+
+/// Static equilibrium for a coil current: torque balance K1 i = Kw x_s + Kf x_f with the
+/// flapper centred, unless the spool sits at its stop and the flapper carries the rest.
+/// Returns (x_f, x_s).
+pub(crate) fn equilibrium(c: &Coefficients, i_coil: f64) -> (f64, f64) {
+    let free_spool = c.k1 * i_coil / c.kw;
+    let x_s = if c.x_spool_max > 0.0 {
+        free_spool.clamp(-c.x_spool_max, c.x_spool_max)
+    } else {
+        free_spool
+    };
+    let flapper = (c.k1 * i_coil - c.kw * x_s) / c.kf;
+    let x_f = if c.x_flapper_max > 0.0 {
+        flapper.clamp(-c.x_flapper_max, c.x_flapper_max)
+    } else {
+        flapper
+    };
+    (x_f, x_s)
+}
+
+/// The paper's no-load flow of the hydraulic amplifier, K3 x_s.
+pub(crate) fn no_load_flow(c: &Coefficients, x_s: f64) -> f64 {
+    c.k3 * x_s
+}
+
+/// Signed square root, regularised below `dp_lam` by the odd cubic `a dp + b dp^3` that
+/// matches value and slope of `sqrt` at `dp_lam` (C1; slope 1.25/sqrt(dp_lam) at zero).
+pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
+    let magnitude = dp.abs();
+    if magnitude >= dp_lam {
+        dp.signum() * magnitude.sqrt()
+    } else {
+        let s = dp / dp_lam;
+        dp_lam.sqrt() * s * (1.25 - 0.25 * s * s)
+    }
+}
+
+/// Actual port flows `(Q_A into A, Q_B out of B)` (m3/s) for spool position `x_s`.
+pub(crate) fn port_flows(
+    params: &CylinderParams,
+    state: &CylinderState,
+    x_s: f64,
+    p_supply: f64,
+) -> (f64, f64) {
+    // Chamber pressures below the floor (rounding only) are read at the floor.
+    let p_a = state.p_a.max(params.p_cavitation);
+    let p_b = state.p_b.max(params.p_cavitation);
+    let gain = params.k3 * x_s / (0.5 * params.dp_rated).sqrt();
+    let lam = params.dp_laminar;
+    if x_s >= 0.0 {
+        // P -> A and B -> T open.
+        (
+            gain * regularised_sqrt(p_supply - p_a, lam),
+            gain * regularised_sqrt(p_b - params.p_tank, lam),
+        )
+    } else {
+        // A -> T and P -> B open (gain < 0 turns the flows around).
+        (
+            gain * regularised_sqrt(p_a - params.p_tank, lam),
+            gain * regularised_sqrt(p_supply - p_b, lam),
+        )
+    }
+}
+/// Slope of [`regularised_sqrt`] with respect to `dp` (finite everywhere, 1.25/sqrt(dp_lam) at 0).
+pub(crate) fn regularised_sqrt_slope(dp: f64, dp_lam: f64) -> f64 {
+    let magnitude = dp.abs();
+    if magnitude >= dp_lam {
+        0.5 / magnitude.sqrt()
+    } else {
+        let s = dp / dp_lam;
+        (1.25 - 0.75 * s * s) / dp_lam.sqrt()
+    }
+}
+
+/// The spool path over one call: the quintic Hermite interpolant through position, rate
+/// and acceleration at both ends of `[0, h]` (the physics core knows them exactly).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SpoolPath {
+    pub h: f64,
+    pub start: [f64; 3],
+    pub end: [f64; 3],
+}
+
+impl SpoolPath {
+    pub(crate) fn position(&self, tau: f64) -> f64 {
+        let (h, a, b) = (self.h, &self.start, &self.end);
+        let s = tau / h;
+        let (s2, s3) = (s * s, s * s * s);
+        let (s4, s5) = (s3 * s, s3 * s2);
+        let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
+        let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
+        let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
+        let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
+        let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
+        let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
+        a[0] * h00
+            + h * a[1] * h10
+            + h * h * a[2] * h20
+            + b[0] * h01
+            + h * b[1] * h11
+            + h * h * b[2] * h21
+    }
+
+    /// d/dtau of [`SpoolPath::position`].
+    pub(crate) fn rate(&self, tau: f64) -> f64 {
+        let (h, a, b) = (self.h, &self.start, &self.end);
+        let s = tau / h;
+        let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
+        let d00 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4;
+        let d10 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
+        let d20 = s - 4.5 * s2 + 6.0 * s3 - 2.5 * s4;
+        let d11 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
+        let d21 = 1.5 * s2 - 4.0 * s3 + 2.5 * s4;
+        (a[0] - b[0]) * d00 / h + a[1] * d10 + h * a[2] * d20 + b[1] * d11 + h * b[2] * d21
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const P_RATED: f64 = 6.8948e6;
+
+    #[test]
+    fn regularised_sqrt_is_c1_and_exact_above_laminar() {
+        let lam = 1e5;
+        for dp in [1e5, 2e5, 3.4474e6, -5e6] {
+            assert_eq!(regularised_sqrt(dp, lam), f64::signum(dp) * f64::sqrt(dp.abs()));
+        }
+        let below = regularised_sqrt(lam * (1.0 - 1e-9), lam);
+        assert!((below - lam.sqrt()).abs() < 1e-9 * lam.sqrt());
+        let slope =
+            |dp: f64| (regularised_sqrt(dp + 1e-3, lam) - regularised_sqrt(dp - 1e-3, lam)) / 2e-3;
+        assert!((slope(lam - 1.0) - slope(lam + 1.0)).abs() < 1e-4 * slope(lam + 1.0));
+        assert!((slope(0.0) - 1.25 / lam.sqrt()).abs() < 1e-9);
+        assert_eq!(regularised_sqrt(-3e4, lam), -regularised_sqrt(3e4, lam));
+    }
+
+    #[test]
+    fn valve_ports_follow_the_orifice_law() {
+        let p = CylinderParams::default();
+        // Each port at dp_r/2 gives exactly the paper's no-load flow K3*x_s.
+        let half = 0.5 * P_RATED;
+        let balanced = CylinderState { p_a: half, p_b: half, x: 0.0, v: 0.0 };
+        let (q_a, q_b) = port_flows(&p, &balanced, 1e-4, P_RATED);
+        assert!((q_a - p.k3 * 1e-4).abs() < 1e-12 * q_a.abs() && (q_b - q_a).abs() < 1e-18);
+        let (q_a, q_b) = port_flows(&p, &balanced, -1e-4, P_RATED);
+        assert!((q_a + p.k3 * 1e-4).abs() < 1e-12 * q_a.abs() && (q_b - q_a).abs() < 1e-18);
+        // Closed valve: no flow at any pressure; load pressure above supply: reverse flow.
+        assert_eq!(port_flows(&p, &balanced, 0.0, P_RATED), (0.0, 0.0));
+        let over = CylinderState { p_a: 1.2 * P_RATED, ..balanced };
+        assert!(port_flows(&p, &over, 1e-4, P_RATED).0 < 0.0);
+    }
+
+    #[test]
+    fn spool_path_rate_is_the_derivative_of_its_position() {
+        let path = SpoolPath { h: 1e-4, start: [1.0e-4, 0.3, -2.0e3], end: [1.3e-4, 0.1, 5.0e3] };
+        for tau in [0.0, 0.1, 0.5, 0.77, 1.0].map(|s| s * path.h) {
+            let d = 1e-6 * path.h;
+            let fd = (path.position(tau + d) - path.position(tau - d)) / (2.0 * d);
+            assert!(
+                (path.rate(tau) - fd).abs() < 1e-8 * 0.3,
+                "tau {tau}: {} vs {fd}",
+                path.rate(tau)
+            );
+        }
+        assert!(
+            (path.position(0.0) - path.start[0]).abs() < 1e-18
+                && (path.position(path.h) - path.end[0]).abs() < 1e-18
+        );
+        assert!((path.rate(0.0) - path.start[1]).abs() < 1e-15);
+        assert!((path.rate(path.h) - path.end[1]).abs() < 1e-14);
+    }
+}
