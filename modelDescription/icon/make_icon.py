@@ -3,6 +3,7 @@ a torque-motor coil on a servo valve above a cylinder with its rod.
 
 usage: .venv/bin/python modelDescription/icon/make_icon.py   (rewrites model.png beside it)
 """
+
 from pathlib import Path
 
 import matplotlib
@@ -21,7 +22,7 @@ def main():
     ax.set_xlim(0, 100)
     ax.set_ylim(0, 100)
     ax.axis("off")
-    box = dict(linewidth=1.5, edgecolor=INK)
+    box = {"linewidth": 1.5, "edgecolor": INK}
     # Torque motor: coil windings on an armature.
     ax.add_patch(Rectangle((30, 80), 40, 14, facecolor=STEEL, **box))
     for x in range(33, 68, 5):

@@ -15,6 +15,7 @@ Linux binary equals the native host build (target/release) where that exists.
 
 usage: python tests/cross/run_cross.py [FMU_DIR]   (default target/fmu)
 """
+
 import os
 import re
 import shutil
@@ -40,9 +41,17 @@ SCENARIOS = (
     ("flow step", 300, 1e-4, {"control_mode": ("init", 1), "Q_ref": ("step", 2e-4)}),
 )
 # What a Windows DLL built by this route may import: Windows' own libraries.
-SYSTEM_DLLS = {"kernel32.dll", "msvcrt.dll", "ntdll.dll", "userenv.dll", "ws2_32.dll",
-               "bcryptprimitives.dll", "advapi32.dll", "bcrypt.dll",
-               "api-ms-win-core-synch-l1-2-0.dll"}
+SYSTEM_DLLS = {
+    "kernel32.dll",
+    "msvcrt.dll",
+    "ntdll.dll",
+    "userenv.dll",
+    "ws2_32.dll",
+    "bcryptprimitives.dll",
+    "advapi32.dll",
+    "bcrypt.dll",
+    "api-ms-win-core-synch-l1-2-0.dll",
+}
 MACHO_CPU = {"x86_64-darwin": 0x01000007, "aarch64-darwin": 0x0100000C}
 
 failures = []
@@ -66,13 +75,26 @@ def zig_cc():
 def build_harnesses(work):
     src = str(HERE / "harness.c")
     flags = ["-std=c99", "-O1", "-Wall", "-Wextra", "-Werror"]
-    built = {"native": work / "harness", "windows": work / "win" / "harness.exe",
-             "aarch64": work / "harness-aarch64"}
+    built = {
+        "native": work / "harness",
+        "windows": work / "win" / "harness.exe",
+        "aarch64": work / "harness-aarch64",
+    }
     (work / "win").mkdir()
     run(["cc", *flags, "-o", str(built["native"]), src, "-ldl"])
     run(["x86_64-w64-mingw32-gcc", *flags, "-o", str(built["windows"]), src])
-    run(["x86_64-w64-mingw32-gcc", "-shared", "-O1", "-Wall", "-o",
-         str(work / "win" / "bcryptprimitives.dll"), str(HERE / "process_prng_shim.c"), "-lbcrypt"])
+    run(
+        [
+            "x86_64-w64-mingw32-gcc",
+            "-shared",
+            "-O1",
+            "-Wall",
+            "-o",
+            str(work / "win" / "bcryptprimitives.dll"),
+            str(HERE / "process_prng_shim.c"),
+            "-lbcrypt",
+        ]
+    )
     run([*zig_cc(), "-target", "aarch64-linux-gnu.2.17", *flags, "-o", str(built["aarch64"]), src])
     return built
 
@@ -104,8 +126,8 @@ def equal(a, b):
     if len(a) != len(b):
         return False, float("inf")
     worst = 0.0
-    for row_a, row_b in zip(a, b):
-        for x, y in zip(row_a, row_b):
+    for row_a, row_b in zip(a, b, strict=True):
+        for x, y in zip(row_a, row_b, strict=True):
             scale = max(abs(x), abs(y))
             if scale > 0:
                 worst = max(worst, abs(x - y) / scale)
@@ -123,9 +145,10 @@ def main():
     try:
         harness = build_harnesses(work)
         env = dict(os.environ, WINEPREFIX=str(work / "wineprefix"), WINEDEBUG="-all")
-        for version, platforms in (("fmi2", ("linux64", "win64", "darwin64")),
-                                   ("fmi3", ("x86_64-linux", "aarch64-linux", "x86_64-windows",
-                                             "x86_64-darwin", "aarch64-darwin"))):
+        for version, platforms in (
+            ("fmi2", ("linux64", "win64", "darwin64")),
+            ("fmi3", ("x86_64-linux", "aarch64-linux", "x86_64-windows", "x86_64-darwin", "aarch64-darwin")),
+        ):
             unzipped = work / version
             with zipfile.ZipFile(fmu_dir / f"EhsvActuator-{version}.fmu") as z:
                 z.extractall(unzipped)
@@ -136,36 +159,59 @@ def main():
             so = binaries / linux / "EhsvActuator.so"
             dll = binaries / windows / "EhsvActuator.dll"
             glibc = highest_glibc(so)
-            check(glibc <= MAX_GLIBC, f"{version} {linux}: highest GLIBC symbol version {glibc} <= {MAX_GLIBC}")
-            imports = {m.lower() for m in re.findall(r"DLL Name: (\S+)", run(["x86_64-w64-mingw32-objdump", "-p", str(dll)]))}
-            check(imports <= SYSTEM_DLLS, f"{version} {windows}: imports only system DLLs ({sorted(imports - SYSTEM_DLLS)} else)")
+            check(
+                glibc <= MAX_GLIBC, f"{version} {linux}: highest GLIBC symbol version {glibc} <= {MAX_GLIBC}"
+            )
+            imports = {
+                m.lower()
+                for m in re.findall(r"DLL Name: (\S+)", run(["x86_64-w64-mingw32-objdump", "-p", str(dll)]))
+            }
+            check(
+                imports <= SYSTEM_DLLS,
+                f"{version} {windows}: imports only system DLLs ({sorted(imports - SYSTEM_DLLS)} else)",
+            )
             runners = {
-                "windows": ([WINE, str(harness["windows"]), "Z:" + str(dll).replace("/", "\\")],
-                            {"cwd": harness["windows"].parent}),
+                "windows": (
+                    [WINE, str(harness["windows"]), "Z:" + str(dll).replace("/", "\\")],
+                    {"cwd": harness["windows"].parent},
+                ),
             }
             if version == "fmi3":
                 arm = binaries / "aarch64-linux" / "EhsvActuator.so"
-                check(highest_glibc(arm) <= MAX_GLIBC, f"fmi3 aarch64-linux: highest GLIBC symbol version <= {MAX_GLIBC}")
-                runners["aarch64"] = (["qemu-aarch64", "-L", AARCH64_SYSROOT, str(harness["aarch64"]), str(arm)], {})
+                check(
+                    highest_glibc(arm) <= MAX_GLIBC,
+                    f"fmi3 aarch64-linux: highest GLIBC symbol version <= {MAX_GLIBC}",
+                )
+                runners["aarch64"] = (
+                    ["qemu-aarch64", "-L", AARCH64_SYSROOT, str(harness["aarch64"]), str(arm)],
+                    {},
+                )
             native = REPO / "target" / "release" / "libehsv_actuator.so"
             if native.exists():
                 runners["native host build"] = ([str(harness["native"]), str(native)], {})
             for scenario in SCENARIOS:
                 args = harness_args(version, unzipped, scenario)
                 reference = parse(run([str(harness["native"]), str(so), *args]))
-                check(len(reference) == scenario[1] + 1 and reference[-1][1] != 0.0,
-                      f"{version} {linux} {scenario[0]}: runs, {len(reference)} points, moving")
+                check(
+                    len(reference) == scenario[1] + 1 and reference[-1][1] != 0.0,
+                    f"{version} {linux} {scenario[0]}: runs, {len(reference)} points, moving",
+                )
                 for name, (command, kw) in runners.items():
                     got = parse(run([*command, *args], env=env, **kw))
                     ok, worst = equal(got, reference)
-                    check(ok, f"{version} {name} {scenario[0]}: equals {linux} (worst relative difference {worst:.1e})")
+                    check(
+                        ok,
+                        f"{version} {name} {scenario[0]}: equals {linux} (worst relative {worst:.1e})",
+                    )
             for platform in platforms:
                 if platform in MACHO_CPU or platform == "darwin64":
                     cpu = MACHO_CPU["x86_64-darwin" if platform == "darwin64" else platform]
                     head = (binaries / platform / "EhsvActuator.dylib").read_bytes()[:16]
                     magic, cputype, _, filetype = struct.unpack("<IIII", head)
-                    check((magic, cputype, filetype) == (0xFEEDFACF, cpu, 6),
-                          f"{version} {platform}: a 64-bit Mach-O dylib for CPU {cpu:#x}")
+                    check(
+                        (magic, cputype, filetype) == (0xFEEDFACF, cpu, 6),
+                        f"{version} {platform}: a 64-bit Mach-O dylib for CPU {cpu:#x}",
+                    )
     finally:
         shutil.rmtree(work, ignore_errors=True)
     print(f"{len(failures)} failed" if failures else "cross-platform checks: all passed")

@@ -1,6 +1,7 @@
 """What a newcomer finds in each archive: documentation/index.html with the paper, the
 modes and a working fmpy example, the licence, an icon, the input file of the documented
 first run, and who made the XML when under which licence."""
+
 import html
 import re
 import xml.etree.ElementTree as ET
@@ -10,7 +11,7 @@ import numpy as np
 from fmpy import simulate_fmu
 from fmpy.util import read_csv
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 REPO = ehsv.REPO
 
@@ -51,8 +52,12 @@ def test_documented_input_file_shows_the_current_step(version, tmp_path):
     with archive(version) as z:
         csv = tmp_path / "current_step.csv"
         csv.write_bytes(z.read("documentation/current_step.csv"))
-    result = simulate_fmu(str(ehsv.fmu_path(version)), input=read_csv(str(csv)),
-                          output_interval=1e-5, output=["i_coil", "u_driver"])
+    result = simulate_fmu(
+        str(ehsv.fmu_path(version)),
+        input=read_csv(str(csv)),
+        output_interval=1e-5,
+        output=["i_coil", "u_driver"],
+    )
     t, i = result["time"], result["i_coil"]
     assert np.all(i[t < 1e-3] == 0.0)
     # The op-amp driver holds 5 mA within 2 % from 0.3 ms after the step on.

@@ -4,13 +4,14 @@ declares. Outputs declare none (no direct feedthrough, so a master closing x_pis
 i_ref sees no algebraic loop); an initial unknown changes in Initialization Mode only
 with the inputs and parameters listed for it. The operating points here differ from the
 ones modelDescription/src/dependencies.rs measures the lists at."""
+
 import xml.etree.ElementTree as ET
 import zipfile
 
 import pytest
 from fmpy.fmi1 import FMICallException
 
-import ehsv_scenarios as ehsv
+import ehsv
 
 # (driver, control mode, values): commands non-zero, one point at the driver's rail
 # (3 mA x 1 kOhm > 2 V) and one with the spool against its stop.
@@ -61,7 +62,7 @@ def moved(var, current):
 
 
 def snapshot(inst, outputs):
-    return dict(zip(outputs, inst.get(outputs)))
+    return dict(zip(outputs, inst.get(outputs), strict=True))
 
 
 def changed(before, after):
