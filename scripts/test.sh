@@ -45,6 +45,10 @@ stage ruff-format .venv/bin/ruff format --check cosim-examples tests/python
 # robustness tests already ran in cargo-test, the importer/state tests in pytest.
 stage valgrind scripts/valgrind.sh
 
+# ---- platforms (README "Platforms"): cross routes installed by scripts/setup-cross.sh,
+# Windows DLL under Wine, aarch64 under qemu-user, glibc <= 2.17, macOS link-checked.
+stage cross scripts/test-cross.sh
+
 echo
 if ((${#failed[@]})); then
     echo "scripts/test.sh: FAILED stages: ${failed[*]}"
