@@ -32,7 +32,7 @@ enum Route {
 
 #[derive(Debug, PartialEq, Eq)]
 pub struct Platform {
-    /// FMI 3.0 platform tuple (binaries/<fmi3>/), also the name on the command line.
+    /// FMI 3.0 platform tuple (`binaries/<fmi3>/`), also the name on the command line.
     pub fmi3: &'static str,
     /// FMI 2.0 folder; FMI 2.0 names no folder for 64-bit ARM.
     pub fmi2: Option<&'static str>,
@@ -168,7 +168,7 @@ impl Platform {
         Ok(target_dir.join(triple).join("release").join(file))
     }
 
-    /// The file name inside binaries/<platform>/.
+    /// The file name inside `binaries/<platform>/`.
     pub fn library_name(&self, model_identifier: &str) -> String {
         format!("{model_identifier}{}", self.library_suffix)
     }

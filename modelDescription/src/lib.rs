@@ -1,7 +1,7 @@
 //! modelDescription.xml for FMI 2.0 and FMI 3.0 Co-Simulation, rendered from the
 //! one variable table (`ehsv_actuator::variables`) and unit list (`ehsv_actuator::units`).
 //!
-//! The structs in [`fmi2`] and [`fmi3`] mirror the XML schemas; quick-xml's serde
+//! The structs in `fmi2` and `fmi3` mirror the XML schemas; quick-xml's serde
 //! serializer writes fields named `@x` as attributes and other fields as child elements.
 //! Nothing about a variable is written down here: every fact comes from the table.
 
