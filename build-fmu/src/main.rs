@@ -16,8 +16,8 @@
 //! `documentation/figures/` and is shown at the end of `documentation/index.html`.
 
 use model_description::{
-    documentation_html, enumerations_markdown, fmi2_xml, fmi3_xml, variables_markdown,
-    CURRENT_STEP_CSV, LICENSE_TEXT, MODEL_IDENTIFIER,
+    documentation_html, enumerations_markdown, fmi2_xml, fmi3_xml, terminals_and_icons_xml,
+    variables_markdown, CURRENT_STEP_CSV, LICENSE_TEXT, MODEL_IDENTIFIER,
 };
 use platforms::{Platform, PLATFORMS};
 use std::io::Write;
@@ -136,6 +136,7 @@ fn run(options: &Options) -> Result<(), String> {
     let out_dir = target.join("fmu");
     fs::create_dir_all(&out_dir)
         .map_err(|e| format!("cannot create {}: {e}", out_dir.display()))?;
+    let terminals = terminals_and_icons_xml();
     for (version, xml) in [("fmi2", fmi2_xml()), ("fmi3", fmi3_xml())] {
         let mut entries: Vec<(String, &[u8])> = vec![
             ("modelDescription.xml".into(), xml.as_bytes()),
@@ -145,6 +146,11 @@ fn run(options: &Options) -> Result<(), String> {
             ("documentation/licenses/license.txt".into(), LICENSE_TEXT.as_bytes()),
             ("model.png".into(), ICON),
         ];
+        if version == "fmi3" {
+            // FMI 3.0 keeps the icon with the terminals.
+            entries.push(("terminalsAndIcons/terminalsAndIcons.xml".into(), terminals.as_bytes()));
+            entries.push(("terminalsAndIcons/icon.png".into(), ICON));
+        }
         for (name, bytes) in &figures {
             entries.push((format!("documentation/figures/{name}"), bytes));
         }

@@ -17,9 +17,11 @@ mod documentation;
 mod fmi2;
 mod fmi3;
 mod markdown;
+mod terminals;
 
 pub use documentation::{documentation_html, CURRENT_STEP_CSV, PAPER_CITATION};
 pub use markdown::{enumerations_markdown, variables_markdown};
+pub use terminals::terminals_and_icons_xml;
 
 /// `modelIdentifier`: the shared-library name inside `binaries/<platform>/`.
 pub const MODEL_IDENTIFIER: &str = "EhsvActuator";

@@ -355,3 +355,28 @@ fn documentation_has_the_paper_the_modes_an_example_and_every_variable() {
     let rows: Vec<&str> = CURRENT_STEP_CSV.lines().collect();
     assert_eq!((rows[0], rows[2], rows[3]), ("time,i_ref", "0.001,0", "0.001,0.005"));
 }
+
+#[test]
+fn terminals_name_existing_variables_and_the_rod_is_a_causal_flange() {
+    let root = parse(&terminals_and_icons_xml());
+    assert_eq!((root.name.as_str(), root.attr("fmiVersion")), ("fmiTerminalsAndIcons", "3.0"));
+    let terminals: Vec<&Element> = root.child("Terminals").all("Terminal").collect();
+    let causality = |name: &str| VARIABLES.iter().find(|v| v.name == name).unwrap().causality;
+    for t in &terminals {
+        for m in t.all("TerminalMemberVariable") {
+            assert!(matches!(
+                causality(m.attr("variableName")),
+                Causality::Input | Causality::Output
+            ));
+        }
+    }
+    let rod = terminals.iter().find(|t| t.attr("name") == "rod").unwrap();
+    let members: Vec<(&str, Causality)> = rod
+        .all("TerminalMemberVariable")
+        .map(|m| (m.attr("memberName"), causality(m.attr("variableName"))))
+        .collect();
+    assert_eq!(
+        members,
+        [("s", Causality::Output), ("v", Causality::Output), ("f", Causality::Input)]
+    );
+}

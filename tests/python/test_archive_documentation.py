@@ -6,6 +6,7 @@ import html
 import re
 import xml.etree.ElementTree as ET
 import zipfile
+from pathlib import Path
 
 import numpy as np
 from fmpy import simulate_fmu
@@ -75,3 +76,18 @@ def test_python_example_of_the_documentation_runs(version, tmp_path, monkeypatch
     monkeypatch.chdir(tmp_path)
     exec(compile(example, "index.html example", "exec"), namespace)
     assert abs(namespace["result"]["i_coil"][-1] - 5e-3) < 0.01 * 5e-3
+
+
+def test_fmi3_terminals_follow_the_schema_and_name_interface_variables():
+    import fmpy
+    import xmlschema
+
+    with archive("fmi3") as z:
+        terminals = z.read("terminalsAndIcons/terminalsAndIcons.xml")
+        assert z.read("terminalsAndIcons/icon.png") == z.read("model.png")
+        root = ET.fromstring(z.read("modelDescription.xml"))
+    schema = Path(fmpy.__file__).parent / "schema" / "fmi3" / "fmi3TerminalsAndIcons.xsd"
+    xmlschema.XMLSchema(str(schema)).validate(terminals.decode())
+    causality = {v.get("name"): v.get("causality") for v in root.find("ModelVariables")}
+    members = [m.get("variableName") for m in ET.fromstring(terminals).iter("TerminalMemberVariable")]
+    assert members and all(causality[m] in ("input", "output") for m in members)
