@@ -1,6 +1,6 @@
 //! The accuracy yardstick: the same model (the rlib `ehsv_actuator::model::Model`, the code
 //! behind the C API) on the same communication grid and inputs, with the cylinder
-//! integrator's tolerance tightened from 1e-8 to [`REFERENCE_RTOL`]. The valve and driver
+//! integrator's tolerance tightened from 1e-8 to [`REFERENCE_RTOL`] (or as asked). The valve and driver
 //! are propagated exactly either way.
 //!
 //! The tolerance is not a variable of the FMU; it travels in the instance's serialized
@@ -59,9 +59,15 @@ pub fn start(workload: &Workload, rtol: Option<f64>) -> Result<Model, String> {
     }
 }
 
-/// Runs one signal of `workload` through the rlib and records the outputs.
-pub fn run(workload: &Workload, signal: Signal, h: f64, steps: usize) -> Result<Trace, String> {
-    let mut m = start(workload, Some(REFERENCE_RTOL))?;
+/// Runs one signal of `workload` through the rlib at cylinder tolerance `rtol` and records the outputs.
+pub fn run(
+    workload: &Workload,
+    signal: Signal,
+    h: f64,
+    steps: usize,
+    rtol: f64,
+) -> Result<Trace, String> {
+    let mut m = start(workload, Some(rtol))?;
     let mut trace = Trace::with_capacity(steps);
     for k in 0..steps {
         let t = k as f64 * h;
@@ -91,4 +97,14 @@ pub fn deviation(trace: &Trace, reference: &Trace) -> [f64; OUTPUTS.len()] {
         *o = worst / scale;
     }
     out
+}
+
+/// Where output `j` deviates most: (step index, value, reference value).
+pub fn worst_point(trace: &Trace, reference: &Trace, j: usize) -> (usize, f64, f64) {
+    let k = (0..trace.len().min(reference.len()))
+        .max_by(|&a, &b| {
+            (trace[a][j] - reference[a][j]).abs().total_cmp(&(trace[b][j] - reference[b][j]).abs())
+        })
+        .unwrap_or(0);
+    (k, trace[k][j], reference[k][j])
 }

@@ -100,7 +100,9 @@ pub fn run(
     y0[PB] = values[vr::P_B];
     y0[X] = values[vr::X_PISTON];
     y0[V] = values[vr::V_PISTON];
-    let mut digital = Digital::at_equilibrium(&p.hbridge, y0[UI], 0.0, rail, 0.0);
+    // The equilibrium voltage R i (the H-bridge's output is one of the rails, its mean is this).
+    let u_mean = (p.r_total * values[vr::I_COIL]).clamp(-rail, rail);
+    let mut digital = Digital::at_equilibrium(&p.hbridge, u_mean, u_mean, rail, 0.0);
     let mut outer = OuterLoop::at_start(&p.loops, 0.0, 0.0);
     let mut ctx = Box::new(Context {
         rhs,
