@@ -36,6 +36,7 @@ stage bench cargo run --release -p ehsv-tests --bin bench -- --quick
 # ---- robustness and conformance (see README "Robustness and conformance"); the fuzz and
 # robustness tests already ran in cargo-test, the importer/state tests in pytest.
 stage valgrind scripts/valgrind.sh
+stage bench-peer bash -c "scripts/setup-bench.sh && cargo run --release -p ehsv-tests --bin bench -- --quick --require-peer"
 
 echo
 if ((${#failed[@]})); then

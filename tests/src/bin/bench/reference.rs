@@ -74,7 +74,7 @@ pub fn run(
         for (vr, value) in INPUTS.iter().zip(signal.inputs(t)) {
             m.set(*vr, value)?;
         }
-        m.do_step(m.time(), h)?;
+        m.do_step(t, h)?; // the master's time base, as through the C API
         trace.push(OUTPUTS.map(|vr| m.get(vr).unwrap()));
     }
     Ok(trace)
