@@ -7,7 +7,7 @@
 //!
 //! Options: `--quick` (0.02 s, h = 1e-4, one run: the smoke test of
 //! scripts/test.sh), `--t-end S` (default 2), `--h 1e-4,1e-3` (default 1e-3,1e-4,1e-5),
-//! `--fmi 2|3|both`, `--only SUBSTRING`, `--repeat N` (untimed runs, best RTF; default 3),
+//! `--fmi 2|3|both`, `--only NAME,NAME`, `--repeat N` (untimed runs, best RTF; default 3),
 //! `--peer-rtol R` (default 1e-8), `--reference-rtol R` (default 1e-10), `--no-peer`,
 //! `--require-peer` (fail if CVODE cannot be loaded), `--all-h` (the quadruped at every h, not
 //! only 1e-4), `--lib PATH`.
@@ -134,6 +134,9 @@ fn measure(
     let steps = (o.t_end / h).round() as usize;
     let sim_time = steps as f64 * h;
     let reference = reference::run(w, w.legs[0], h, steps, o.reference_rtol)?;
+    // How far the yardstick itself is converged: the same run 10x tighter.
+    let tighter = reference::run(w, w.legs[0], h, steps, 0.1 * o.reference_rtol)?;
+    let reference_spread = report::worst(&reference::deviation(&reference, &tighter));
     let mut rows = Vec::new();
     let mut first_trace: Option<reference::Trace> = None;
     for fmu in fmus {
@@ -186,6 +189,7 @@ fn measure(
             step_cpu: timed.step_cpu.unwrap_or_default(),
             step_wall: timed.step_wall.unwrap_or_default(),
             deviation: Some(dev),
+            reference_spread,
             peer,
         });
         first_trace.get_or_insert(best.trace);
@@ -232,7 +236,7 @@ fn main() -> ExitCode {
             if !e.is_empty() {
                 eprintln!("bench: {e}");
             }
-            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--no-peer] [--require-peer] [--all-h] [--lib PATH]");
+            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--no-peer] [--require-peer] [--all-h] [--lib PATH]");
             return if e.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
         }
     };
@@ -280,7 +284,7 @@ fn main() -> ExitCode {
     let mut problems = Vec::new();
     for &h in &o.steps {
         for w in workloads::all() {
-            if o.only.as_ref().is_some_and(|s| !w.name.contains(s.as_str())) {
+            if o.only.as_ref().is_some_and(|names| !names.split(',').any(|n| n == w.name)) {
                 continue;
             }
             if w.is_quadruped() && h != QUADRUPED_H && !o.all_h {
