@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-/// CPU time consumed by the calling thread [s].
+/// CPU time consumed by the calling thread (s).
 pub fn thread_cpu() -> f64 {
     let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
     // SAFETY: valid clock id and a writable timespec.
@@ -13,12 +13,12 @@ pub fn thread_cpu() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
-/// Durations of single calls [s], collected into a buffer allocated up front.
+/// Durations of single calls (s), collected into a buffer allocated up front.
 pub struct Samples {
     values: Vec<f64>,
 }
 
-/// Mean, 99.9th percentile and maximum of the samples [s].
+/// Mean, 99.9th percentile and maximum of the samples (s).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Summary {
     pub mean: f64,

@@ -46,16 +46,16 @@ pub const OUTPUT_NAMES: [&str; 12] = [
     "F_hydr",
 ];
 
-/// Current command amplitude of the current-mode waves [A].
+/// Current command amplitude of the current-mode waves (A).
 pub const I_AMPLITUDE: f64 = 5e-3;
-/// Gait: period (stance + swing) [s], position amplitude [m] at 1/period, second harmonic [m].
+/// Gait: period (stance + swing) (s), position amplitude (m) at 1/period, second harmonic (m).
 const GAIT_PERIOD: f64 = 0.5;
 const GAIT_AMPLITUDE: f64 = 15e-3;
 const GAIT_HARMONIC: f64 = 3e-3;
-/// Touchdown load during stance: half-sine peak [N] (pushing the rod in) and stance time [s].
+/// Touchdown load during stance: half-sine peak (N) (pushing the rod in) and stance time (s).
 const TOUCHDOWN_PEAK: f64 = 1500.0;
 const STANCE: f64 = 0.25;
-/// Flow loop square wave: amplitude [m3/s] and frequency [Hz].
+/// Flow loop square wave: amplitude (m3/s) and frequency (Hz).
 const Q_AMPLITUDE: f64 = 2e-5;
 const Q_FREQUENCY: f64 = 20.0;
 /// Legs of the quadruped.
@@ -65,11 +65,11 @@ pub const LEGS: usize = 12;
 pub enum Signal {
     /// Current command 0 -> 5 mA at t = 0, then held: the piston runs to its end stop and rests.
     StepToRest,
-    /// +-5 mA square wave (starts positive) at this frequency [Hz].
+    /// +-5 mA square wave (starts positive) at this frequency (Hz).
     Square(f64),
-    /// 5 mA sine at this frequency [Hz].
+    /// 5 mA sine at this frequency (Hz).
     Sine(f64),
-    /// Position loop on the gait reference with touchdown loads, this time shift [s].
+    /// Position loop on the gait reference with touchdown loads, this time shift (s).
     Gait(f64),
     /// Flow loop on a Q_ref square wave.
     FlowSquare,

@@ -29,17 +29,17 @@ pub const PB: usize = 7;
 pub const X: usize = 8;
 pub const V: usize = 9;
 
-/// Rate at which the op-amp output follows its unsaturated target [1/s].
+/// Rate at which the op-amp output follows its unsaturated target (1/s).
 pub const TRACKING: f64 = 1e8;
 
 /// Inputs and discrete states held between events.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Held {
-    /// Coil current command (i_ref, or the outer loop's output) [A].
+    /// Coil current command (i_ref, or the outer loop's output) (A).
     pub i_cmd: f64,
-    /// Driver rail V_supply - V_drop [V].
+    /// Driver rail V_supply - V_drop (V).
     pub rail: f64,
-    /// H-bridge output between switching instants [V] (other drivers: unused).
+    /// H-bridge output between switching instants (V) (other drivers: unused).
     pub u_bridge: f64,
     pub p_supply: f64,
     pub f_ext: f64,
