@@ -14,7 +14,7 @@
 //!
 //! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the
 //! step-to-rest current does not end at 5 mA, or an output strays more than 1 % of its
-//! range from the reference.
+//! range from the reference (and 10x more than the reference from a tighter one).
 
 mod fmi;
 mod fmu_run;
@@ -31,7 +31,8 @@ use fmi::{Fmu, Version};
 use report::{PeerSummary, Row};
 use workloads::{Signal, Workload, I_AMPLITUDE};
 
-/// An output further than this fraction of its range from the reference is an error.
+/// An output further than this fraction of its range from the reference (and 10x further
+/// than the reference from a tighter one) is an error.
 const DEVIATION_LIMIT: f64 = 1e-2;
 /// The quadruped runs at this step only unless `--all-h`.
 const QUADRUPED_H: f64 = 1e-4;
@@ -156,7 +157,9 @@ fn measure(
         }
         let deviations = reference::deviation(&best.trace, &reference);
         let dev = report::worst(&deviations);
-        if dev.0.is_nan() || dev.0 > DEVIATION_LIMIT {
+        // Beyond the limit and well beyond what the reference itself is sure of (an
+        // ill-conditioned trajectory moves the reference as much as the FMU).
+        if dev.0.is_nan() || (dev.0 > DEVIATION_LIMIT && dev.0 > 10.0 * reference_spread.0) {
             let (k, value, expected) = reference::worst_point(&best.trace, &reference, dev.1);
             problems.push(format!(
                 "{} {}: {} deviates {:.2e} of its range from the reference, most at t = {:.6} s: {value:e} instead of {expected:e}",
