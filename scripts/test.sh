@@ -44,6 +44,7 @@ stage ruff-format .venv/bin/ruff format --check cosim-examples tests/python
 # ---- robustness and conformance (see README "Robustness and conformance"); the fuzz and
 # robustness tests already ran in cargo-test, the importer/state tests in pytest.
 stage valgrind scripts/valgrind.sh
+stage bench-peer bash -c "scripts/setup-bench.sh && cargo run --release -p ehsv-tests --bin bench -- --quick --require-peer"
 
 # ---- platforms (README "Platforms"): cross routes installed by scripts/setup-cross.sh,
 # Windows DLL under Wine, aarch64 under qemu-user, glibc <= 2.17, macOS link-checked.

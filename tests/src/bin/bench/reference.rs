@@ -1,0 +1,110 @@
+//! The accuracy yardstick: the same model (the rlib `ehsv_actuator::model::Model`, the code
+//! behind the C API) on the same communication grid and inputs, with the cylinder
+//! integrator's tolerance tightened from 1e-8 to [`REFERENCE_RTOL`] (or as asked). The valve and driver
+//! are propagated exactly either way.
+//!
+//! The tolerance is not a variable of the FMU; it travels in the instance's serialized
+//! state (the integrator memory `[rtol, h_next, h_accepted, err_accepted]` closes the
+//! state body). The reference takes the state bytes after initialisation, replaces rtol
+//! and restores them, so nothing in the FMU changes for the benchmark.
+
+use ehsv_actuator::model::Model;
+
+use crate::workloads::{Signal, Workload, INPUTS, OUTPUTS};
+
+pub const REFERENCE_RTOL: f64 = 1e-10;
+/// See [`deviation`].
+const RANGE_FLOOR: f64 = 1e-3;
+/// The rtol the FMU runs at (checked in the state bytes, so a layout change fails loudly).
+const FMU_RTOL: f64 = 1e-8;
+
+/// Outputs after every communication step, `OUTPUTS` order.
+pub type Trace = Vec<[f64; OUTPUTS.len()]>;
+
+/// FNV-1a 64 over the state body, as the FMU frames its state (magic | length | body | sum).
+fn checksum(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))
+}
+
+/// The instance with its cylinder tolerance set to `rtol`.
+fn with_rtol(model: &Model, rtol: f64) -> Result<Model, String> {
+    let mut bytes = model.to_bytes();
+    let n = bytes.len();
+    let at = n - 8 - 32; // rtol: first of the 4 memory words that end the body
+    let old = f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+    if old != FMU_RTOL {
+        return Err(format!(
+            "state layout changed: expected the integrator rtol {FMU_RTOL} at byte {at}, found {old}"
+        ));
+    }
+    bytes[at..at + 8].copy_from_slice(&rtol.to_le_bytes());
+    let sum = checksum(&bytes[16..n - 8]);
+    bytes[n - 8..].copy_from_slice(&sum.to_le_bytes());
+    Model::from_bytes(&bytes)
+}
+
+/// A started model of `workload` through the rlib, at the FMU's own tolerance or `rtol`.
+pub fn start(workload: &Workload, rtol: Option<f64>) -> Result<Model, String> {
+    let mut m = Model::new();
+    for (vr, value) in workload.enums() {
+        m.set(vr, value as f64)?;
+    }
+    for (vr, value) in workload.reals() {
+        m.set(vr, value)?;
+    }
+    m.initialize()?;
+    match rtol {
+        Some(rtol) => with_rtol(&m, rtol),
+        None => Ok(m),
+    }
+}
+
+/// Runs one signal of `workload` through the rlib at cylinder tolerance `rtol` and records the outputs.
+pub fn run(
+    workload: &Workload,
+    signal: Signal,
+    h: f64,
+    steps: usize,
+    rtol: f64,
+) -> Result<Trace, String> {
+    let mut m = start(workload, Some(rtol))?;
+    let mut trace = Trace::with_capacity(steps);
+    for k in 0..steps {
+        let t = k as f64 * h;
+        for (vr, value) in INPUTS.iter().zip(signal.inputs(t)) {
+            m.set(*vr, value)?;
+        }
+        m.do_step(t, h)?; // the master's time base, as through the C API
+        trace.push(OUTPUTS.map(|vr| m.get(vr).unwrap()));
+    }
+    Ok(trace)
+}
+
+/// Largest deviation of each output from the reference as a fraction of the reference's
+/// range over the run, the range taken as at least [`RANGE_FLOOR`] of the output's largest
+/// magnitude (an output that barely moves, e.g. u_driver sampled at rest, has no range to
+/// speak of).
+pub fn deviation(trace: &Trace, reference: &Trace) -> [f64; OUTPUTS.len()] {
+    let mut out = [0.0; OUTPUTS.len()];
+    for (j, o) in out.iter_mut().enumerate() {
+        let (lo, hi) = reference
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| (lo.min(r[j]), hi.max(r[j])));
+        let range = hi - lo;
+        let scale = range.max(RANGE_FLOOR * hi.abs().max(lo.abs())).max(f64::MIN_POSITIVE);
+        let worst =
+            trace.iter().zip(reference).map(|(a, r)| (a[j] - r[j]).abs()).fold(0.0, f64::max);
+        *o = worst / scale;
+    }
+    out
+}
+
+/// Where output `j` deviates most: (step index, value, reference value).
+pub fn worst_point(trace: &Trace, reference: &Trace, j: usize) -> (usize, f64, f64) {
+    let k = (0..trace.len().min(reference.len()))
+        .max_by(|&a, &b| {
+            (trace[a][j] - reference[a][j]).abs().total_cmp(&(trace[b][j] - reference[b][j]).abs())
+        })
+        .unwrap_or(0);
+    (k, trace[k][j], reference[k][j])
+}

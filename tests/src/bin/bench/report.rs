@@ -1,0 +1,147 @@
+//! The benchmark table.
+
+use crate::fmi::Version;
+use crate::peer::PeerRun;
+use crate::timing::Summary;
+use crate::workloads::OUTPUT_NAMES;
+
+/// One row: a workload at one step size through one FMI version.
+pub struct Row {
+    pub workload: String,
+    pub h: f64,
+    pub version: Version,
+    /// Best real-time factor over the untimed runs: wall, thread CPU.
+    pub rtf_wall: f64,
+    pub rtf_cpu: f64,
+    /// Per-doStep thread CPU and wall time.
+    pub step_cpu: Summary,
+    pub step_wall: Summary,
+    /// Worst output deviation from the reference as a fraction of its range, and which.
+    pub deviation: Option<(f64, usize)>,
+    /// The same for the reference against a 10x tighter one (how converged the yardstick is).
+    pub reference_spread: (f64, usize),
+    pub peer: Option<PeerSummary>,
+}
+
+/// The peer's figures for a (workload, step) pair.
+pub struct PeerSummary {
+    pub rtf_cpu: f64,
+    /// Peer thread-CPU time / FMU thread-CPU time (> 1: the FMU is faster).
+    pub ratio: f64,
+    pub deviation: (f64, usize),
+    pub steps_per_point: f64,
+    pub jacobians_per_point: f64,
+    pub lu_per_point: f64,
+    pub restarts_per_point: f64,
+}
+
+impl PeerSummary {
+    pub fn new(
+        run: &PeerRun,
+        sim_time: f64,
+        points: usize,
+        fmu_cpu: f64,
+        deviation: (f64, usize),
+    ) -> Self {
+        let per = |n: i64| n as f64 / points as f64;
+        PeerSummary {
+            rtf_cpu: sim_time / run.cpu,
+            ratio: run.cpu / fmu_cpu,
+            deviation,
+            steps_per_point: per(run.counters.steps),
+            jacobians_per_point: per(run.counters.jacobians),
+            lu_per_point: per(run.counters.lu),
+            restarts_per_point: run.restarts as f64 / points as f64,
+        }
+    }
+}
+
+/// Largest entry and its index.
+pub fn worst(deviations: &[f64]) -> (f64, usize) {
+    deviations
+        .iter()
+        .enumerate()
+        .fold((0.0, 0), |acc, (j, &d)| if d > acc.0 { (d, j) } else { acc })
+}
+
+fn us(s: f64) -> String {
+    format!("{:.2}", s * 1e6)
+}
+
+fn deviation(d: Option<(f64, usize)>) -> String {
+    match d {
+        Some((v, j)) => format!("{v:.1e} {}", OUTPUT_NAMES[j]),
+        None => "-".into(),
+    }
+}
+
+pub fn header() {
+    println!(
+        "{:<22} {:>5} {:>4} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} | {:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}",
+        "workload",
+        "h",
+        "FMI",
+        "RTF",
+        "RTFcpu",
+        "mean",
+        "p99.9",
+        "max",
+        "maxwall",
+        "dev/range",
+        "ref spread",
+        "peerRTF",
+        "peer dev/range",
+        "st/pt",
+        "jac/pt",
+        "LU/pt",
+        "rst/pt",
+        "peer/FMU"
+    );
+}
+
+pub fn print(row: &Row) {
+    let peer = match &row.peer {
+        Some(p) => format!(
+            "{:>7.1} {:>17} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>7.1}x",
+            p.rtf_cpu,
+            deviation(Some(p.deviation)),
+            p.steps_per_point,
+            p.jacobians_per_point,
+            p.lu_per_point,
+            p.restarts_per_point,
+            p.ratio
+        ),
+        None => {
+            format!("{:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}", "-", "-", "-", "-", "-", "-", "-")
+        }
+    };
+    println!(
+        "{:<22} {:>5.0e} {:>4} {:>7.1} {:>7.1} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} | {peer}",
+        row.workload,
+        row.h,
+        row.version.label(),
+        row.rtf_wall,
+        row.rtf_cpu,
+        us(row.step_cpu.mean),
+        us(row.step_cpu.p999),
+        us(row.step_cpu.max),
+        us(row.step_wall.max),
+        deviation(row.deviation),
+        deviation(Some(row.reference_spread)),
+    );
+}
+
+pub const LEGEND: &str = "\
+RTF: simulated time / wall time of the best untimed run (all instances; doStep + SetReal of 4
+  inputs + GetReal of 12 outputs per instance and step); RTFcpu: the same on thread CPU time.
+mean, p99.9, max: one doStep in thread CPU time (CLOCK_THREAD_CPUTIME_ID) [us]; maxwall: the
+  worst in wall time (the difference is preemption). Timed separately (two clock reads per call).
+dev/range: worst max|output - reference| / range of that output over the run; reference: the
+  same model through the rlib at cylinder rtol 1e-10 (the FMU runs 1e-8), same grid and inputs.
+ref spread: the same measure between that reference and one at rtol 1e-11: where it is not small
+  the workload itself is ill-conditioned (a deviation of that size says nothing of the FMU).
+peer: SUNDIALS CVODE (BDF, Newton, dense LU, DQ Jacobian) on the same equations, rtol as given,
+  restarted at every input change and time event; st/pt, jac/pt, LU/pt, rst/pt: its steps,
+  Jacobians, LU factorisations and restarts per communication point; peer/FMU: its thread CPU
+  time over the FMU's (untimed run): > 1 means the FMU is that many times faster.
+FMU internal steps and Jacobian/propagator counts per point: not exposed by the physics yet.";
