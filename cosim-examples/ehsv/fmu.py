@@ -191,3 +191,23 @@ class Ehsv:
 
     def log_text(self) -> str:
         return "\n".join(str(r) for r in self.log)
+
+
+_POOL: dict[str, Ehsv] = {}
+
+
+def pooled_instance(version: str) -> Ehsv:
+    """This process's reusable instance of ``version``, reset to its start values (state
+    Instantiated, log emptied): many runs in one process (a dask worker, a sweep) cost
+    one instantiation and one extraction of the archive. The FMU is deterministic, so a
+    reset instance gives the same numbers as a new one (test_sweep.py checks it)."""
+    inst = _POOL.get(version)
+    if inst is not None:
+        try:
+            inst.reset()
+            inst.log.clear()
+            return inst
+        except Exception:  # noqa: BLE001 -- an instance that cannot reset is replaced
+            _POOL.pop(version, None)
+    inst = _POOL[version] = Ehsv(version)
+    return inst
