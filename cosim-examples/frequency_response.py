@@ -213,7 +213,8 @@ def bode_figure(curves: list[dict], out: Path, version: str) -> None:
         mag.axhline(-3, color="grey", lw=0.5, ls=":")
         ph.axhline(-90, color="grey", lw=0.5, ls=":")
         ph.set_ylim(-300 if o == "Q_valve" else -180, 10)
-        mag.set_title(f"i_ref -> {o} (flow loop: Q_ref -> Q_valve), 72 V, 0.1 mA", fontsize=9)
+        flow = " (flow loop: Q_ref -> Q_valve)" if o == "Q_valve" else ""
+        mag.set_title(f"i_ref -> {o}{flow}, 72 V, 0.1 mA", fontsize=9)
         mag.set_ylabel("gain / static gain [dB]")
         ph.set_ylabel("phase [deg]")
         ph.set_xlabel("frequency [Hz]")
@@ -253,7 +254,7 @@ def large_figure(curves: list[dict], out: Path, version: str) -> None:
 def onset_figure(onsets: list[dict], out: Path) -> None:
     plt = ehsv.pyplot()
     fig, ax = plt.subplots(figsize=(8, 5))
-    amps = np.geomspace(0.3e-3, 12e-3, 200)
+    amps = np.geomspace(0.5e-3, 12e-3, 200)
     for v, color in zip(SUPPLIES, ("tab:blue", "tab:orange", "tab:red"), strict=True):
         a = amps[[feasible(v, x) for x in amps]]
         ax.loglog(

@@ -134,18 +134,20 @@ def figure(df: pd.DataFrame, metric: str, out: Path) -> None:
     if metric == "settling_i" and x == "V_supply" and group == "driver":
         for spec in ehsv.PAPER_DRIVERS:
             ax.plot(spec.V_supply, spec.paper_ms, "k*", ms=12)
+            right = spec.V_supply > df[x].mean()
             ax.annotate(
                 f"paper: {spec.driver} {spec.paper_ms:g} ms at {spec.V_supply:g} V",
                 (spec.V_supply, spec.paper_ms),
                 textcoords="offset points",
-                xytext=(6, 6),
+                xytext=(-8 if right else 8, 8),
+                ha="right" if right else "left",
                 fontsize=8,
             )
         ax.set_yscale("log")
     unit = "ms" if scale == 1e3 else ""
     ax.set_xlabel(x)
     ax.set_ylabel(f"{metric} [{unit}]" if unit else metric)
-    ax.set_title(study.METRICS[metric][0], fontsize=9)
+    ax.set_title(study.METRICS[metric][0].rsplit(",", 1)[0], fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.suptitle(f"EhsvActuator parameter study: {len(df)} runs")

@@ -269,6 +269,8 @@ def loop_rail_limit(v_supply: float, amplitude: float, params: dict | None = Non
     rail = v_supply - p["driver.V_drop"]
     if amplitude * abs(drive_voltage(0.0, params)) >= rail:
         return 0.0
+    if amplitude * p["driver.Kp"] <= rail:
+        return math.inf  # |u/i_cmd| <= Kp at every frequency: the rail is never asked for
     return refine(lambda f: amplitude * abs(drive_voltage(f, params)) >= rail, 1e-3, 1e7, 1e-9)
 
 
