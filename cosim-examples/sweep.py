@@ -1,5 +1,6 @@
-"""Parameter study of the FMU on dask.distributed: one FMU run per design point, every
-metric in one tidy table (Parquet), a figure of the study.
+"""Parameter study of the FMU on dask.distributed, one FMU run per design point.
+
+Every metric goes in one tidy table (Parquet), and a figure shows the study.
 
     .venv/bin/python cosim-examples/sweep.py                      # default study, ~36 runs
     .venv/bin/python cosim-examples/sweep.py --points 40          # finer: 120 runs
