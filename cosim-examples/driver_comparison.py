@@ -18,8 +18,7 @@ import sys
 from pathlib import Path
 
 import ehsv
-
-COLORS = {"opamp_pi": "tab:blue", "hbridge_pid": "tab:orange", "industrial": "tab:green"}
+from ehsv import paper_plots
 
 
 def main(argv=None) -> int:
@@ -46,65 +45,7 @@ def main(argv=None) -> int:
     hb = results["hbridge_pid"]
     print(f"H-bridge ripple at the end: {hb.ripple * 1e3:.4f} mA peak to peak")
 
-    plt = ehsv.pyplot()
-
-    t_max = args.t_max_ms * 1e-3
-    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(9, 7))
-    for name, res in results.items():
-        c = COLORS[name]
-        t = res.run["time"]
-        keep = t <= t_max
-        label = f"{name} ({res.spec.V_supply:g} V): {res.settling * 1e3:.3f} ms (paper {res.spec.paper_ms:g})"
-        if res.spec.averaged:
-            ax1.plot(
-                t[keep] * 1e3,
-                res.run["i_coil"][keep] * 1e3,
-                color=c,
-                lw=0.5,
-                alpha=0.45,
-                label=f"{name} raw (PWM ripple)",
-            )
-            ka = res.t_avg <= t_max
-            ax1.plot(
-                res.t_avg[ka] * 1e3,
-                res.i_avg[ka] * 1e3,
-                color=c,
-                lw=1.6,
-                label=f"{name} period mean: {res.settling * 1e3:.3f} ms (paper {res.spec.paper_ms:g})",
-            )
-            ax2.plot(
-                t[keep] * 1e3,
-                res.run["u_driver"][keep],
-                color=c,
-                lw=0.3,
-                alpha=0.35,
-                label=f"{name} raw (+-{res.spec.V_supply:g} V PWM)",
-            )
-            ax2.plot(res.t_avg[ka] * 1e3, res.u_avg[ka], color=c, lw=1.6, label=f"{name} period mean")
-        else:
-            ax1.plot(t[keep] * 1e3, res.run["i_coil"][keep] * 1e3, color=c, lw=1.4, label=label)
-            ax2.plot(
-                t[keep] * 1e3,
-                res.run["u_driver"][keep],
-                color=c,
-                lw=1.4,
-                label=f"{name} ({res.spec.V_supply:g} V)",
-            )
-        ax1.axvline(res.settling * 1e3, color=c, lw=0.8, ls="--")
-    step_ma = ehsv.PAPER_STEP * 1e3
-    for f in (0.98, 1.02):
-        ax1.axhline(step_ma * f, color="grey", lw=0.5, ls=":")
-    ax1.set_ylabel("i_coil [mA]")
-    ax1.set_ylim(0, step_ma * 1.15)
-    ax1.legend(loc="lower right", fontsize=8)
-    ax1.grid(alpha=0.3)
-    ax1.set_title("dashed: 2 % settling time; dotted: +-2 % band", fontsize=9)
-    ax2.set_ylabel("u_driver [V]")
-    ax2.set_xlabel("time after the step [ms]")
-    ax2.set_xlim(0, args.t_max_ms)
-    ax2.legend(loc="upper right", fontsize=8)
-    ax2.grid(alpha=0.3)
-    fig.suptitle(f"EhsvActuator: 0 -> {step_ma:g} mA current step, three coil drivers ({version})")
+    fig = paper_plots.fig14_16_drivers(results, version, args.t_max_ms)
     ehsv.save_figure(fig, args.out)
     print(f"figure: {args.out}")
     return 0

@@ -10,9 +10,15 @@ in tests/python share, one module for each concern.
 * ``bands``: the paper's figures and the bands the FMU must land in,
 * ``reference``: numpy reference models (exact linear valve, cylinder RK4),
 * ``report``: the tables printed by the examples, ``plotting``: figures to files,
+  ``paper_plots``: the paper's figures redrawn from FMU runs,
+* ``frequency``: frequency responses through the FMU and the analytic ones (eq. 3/eq. 4),
+* ``study``: parameter-study designs, scenarios and metrics; ``cluster``: many runs on
+  dask.distributed (LocalCluster or a cluster by address) or in this process,
 * ``bad_input``: the bad-input cases run in a child process.
 
-The names below are the package's public surface (``import ehsv; ehsv.run_step(...)``).
+The names below are the package's public surface for the common runs (``import ehsv;
+ehsv.run_step(...)``); the studies' modules are imported by name (``from ehsv import
+frequency, study, cluster``).
 Nothing here builds anything: the archives are made by ``cargo run --release -p
 build-fmu`` (scripts/test.sh and scripts/demo.sh do it first).
 """

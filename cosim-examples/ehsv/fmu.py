@@ -56,9 +56,15 @@ class Ehsv:
 
     The archive is extracted once per process and its model description read once, so
     many instances (one after another or at once) cost only the instantiation. Log
-    messages of the FMU are kept in ``log`` (FMI 2: a fmi2CallbackFunctions struct with
-    our own logger plus fmpy's native proxy that formats the variadic message; FMI 3:
+    messages of the FMU are kept in ``log`` (FMI 2: our own fmi2CallbackLogger; FMI 3:
     ``FMU3Slave.instantiate(logMessage=...)``).
+
+    The FMI 2 logger is variadic (a printf format); this FMU passes its message as the
+    format with every '%' doubled and no arguments, so the callback undoes the doubling.
+    fmpy's native addLoggerProxy would format arguments too, but it keeps one logger for
+    the whole process: every instance's messages would go to the callback of the
+    instance made last, a dangling pointer once that one is collected (a segfault seen
+    when a long-lived instance logged after others had come and gone).
     """
 
     version: str
@@ -92,8 +98,6 @@ class Ehsv:
         self._free = False
 
     def _instantiate_fmi2(self, args):
-        from ctypes import byref
-
         from fmpy import calloc, free
         from fmpy.fmi2 import (
             FMU2Slave,
@@ -102,16 +106,15 @@ class Ehsv:
             fmi2CallbackFunctions,
             fmi2CallbackLoggerTYPE,
         )
-        from fmpy.logging import addLoggerProxy
 
         def logger(_env, _instance, status, category, message):
-            self.log.append(LogRecord(int(status), _dec(category), _dec(message)))
+            text = _dec(message).replace("%%", "%")
+            self.log.append(LogRecord(int(status), _dec(category), text))
 
         cb = fmi2CallbackFunctions()
         cb.logger = fmi2CallbackLoggerTYPE(logger)
         cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(cb))  # formats the printf-style message in C
         self._callbacks = cb  # keep alive as long as the instance
         fmu = FMU2Slave(**args)
         fmu.instantiate(callbacks=cb, loggingOn=self.logging_on)
@@ -191,3 +194,23 @@ class Ehsv:
 
     def log_text(self) -> str:
         return "\n".join(str(r) for r in self.log)
+
+
+_POOL: dict[str, Ehsv] = {}
+
+
+def pooled_instance(version: str) -> Ehsv:
+    """This process's reusable instance of ``version``, reset to its start values (state
+    Instantiated, log emptied): many runs in one process (a dask worker, a sweep) cost
+    one instantiation and one extraction of the archive. The FMU is deterministic, so a
+    reset instance gives the same numbers as a new one (test_sweep.py checks it)."""
+    inst = _POOL.get(version)
+    if inst is not None:
+        try:
+            inst.reset()
+            inst.log.clear()
+            return inst
+        except Exception:  # noqa: BLE001 -- an instance that cannot reset is replaced
+            _POOL.pop(version, None)
+    inst = _POOL[version] = Ehsv(version)
+    return inst

@@ -16,7 +16,7 @@ import numpy as np
 
 from .bands import FLOW_STEP, PAPER_DRIVERS, PAPER_FLOW, PAPER_STEP, PAPER_T_TORQUE, PaperDriver
 from .contract import CONTROL_MODES, DRIVERS
-from .fmu import Ehsv
+from .fmu import Ehsv, pooled_instance
 from .measures import period_average, pwm_period, settling_time
 
 #: outputs of the current-loop runs
@@ -44,17 +44,19 @@ def run_scenario(
     changes: dict | None = None,
     t_change: float = 0.0,
     outputs=HYDRAULIC_OUTPUTS,
+    reuse: bool = False,
 ) -> dict[str, np.ndarray]:
     """General form of run_step: ``params`` and the ``initial`` inputs are set before
     initialisation (the model starts in equilibrium with them), ``changes`` (input name ->
     value) are set just before the doStep that starts at ``t_change``; ``outputs`` are
     recorded at every communication point k*h up to t_stop (times from integers, so runs
-    with different h share their grid points exactly)."""
+    with different h share their grid points exactly). ``reuse``: run on this process's
+    pooled instance (reset, not freed) instead of a new one."""
     n = int(round(t_stop / h))
     k_change = int(round(t_change / h))
     if abs(k_change * h - t_change) > 1e-12 * max(1.0, t_change) or abs(n * h - t_stop) > 1e-9 * t_stop:
         raise ValueError("t_change and t_stop must be multiples of h")
-    inst = Ehsv(version)
+    inst = pooled_instance(version) if reuse else Ehsv(version)
     try:
         for k, v in {**(params or {}), **(initial or {})}.items():
             inst.set(k, v)
@@ -67,7 +69,8 @@ def run_scenario(
                     inst.set(name, v)
             inst.do_step(k * h, h)
             rec[k + 1] = inst.get(outputs)
-        inst.free()
+        if not reuse:
+            inst.free()
     except Exception as e:  # keep the FMU's own words with the exception
         if inst.log:
             raise RuntimeError(f"{e}\nFMU log:\n{inst.log_text()}") from e

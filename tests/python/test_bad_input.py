@@ -44,3 +44,22 @@ def test_bad_input_is_an_error_with_a_log_message(version, case):
             f"Error log does not name the cause ({alternatives}): {errors}"
         )
     assert result["freed"]
+
+
+def test_each_instance_gets_its_own_log_messages(version):
+    """Two live instances, the first made first: an error of the first is logged to the
+    first only, also after a third instance has come and gone (one process-wide logger,
+    as fmpy's native proxy keeps, would send it to the last instance made)."""
+    import gc
+
+    first, second = ehsv.Ehsv(version), ehsv.Ehsv(version)
+    gone = ehsv.Ehsv(version)
+    gone.free(terminate=False)
+    del gone
+    gc.collect()
+    with pytest.raises(Exception, match="failed"):
+        first.set("coil.L", -2.5)
+    assert any("coil.L = -2.5" in r.message for r in first.log), first.log_text()
+    assert second.log == []
+    for inst in (first, second):
+        inst.free(terminate=False)

@@ -76,3 +76,20 @@ def test_direct_and_propagated_exact_solutions_agree():
         idx = np.rint(t / 1e-5).astype(int)
         q_final = ehsv.flow_gain() * 5e-3
         assert np.max(np.abs(direct["Q_valve"] - dense["Q_valve"][idx])) <= 1e-10 * q_final
+
+
+def test_eq3_eq4_polynomials_equal_the_state_space_models():
+    """The paper's eq. 3 and eq. 4 written as polynomials (ehsv.frequency) and the state
+    space of the valve (ehsv.linear_model) are two derivations of one model:
+    C (sI - A)^-1 B with C = K3 on x_spool must equal them at every frequency."""
+    from ehsv import frequency as fr
+
+    for driver, poly in (("ideal_current", fr.eq3), ("voltage", fr.eq4)):
+        a, b, names = ehsv.linear_model(driver)
+        c = np.zeros(len(names))
+        c[names.index("x_spool")] = ehsv.NOMINAL["valve.K3"]
+        for f in (0.1, 10.0, 100.0, 814.0, 5000.0):
+            s = 2j * math.pi * f
+            ss = c @ np.linalg.solve(s * np.eye(len(a)) - a, b)
+            assert ss == pytest.approx(poly(f), rel=1e-10), (driver, f)
+    assert fr.eq3(0.0).real == pytest.approx(ehsv.flow_gain(), rel=1e-12)
