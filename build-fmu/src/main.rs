@@ -12,7 +12,8 @@
 //! (skipped when the host platform has another source). The cross routes are installed by
 //! scripts/setup-cross.sh; on Linux x86_64 the cross route is the portable glibc 2.17 build.
 //!
-//! Every `*.png` in `<target>/figures/` (or `$EHSV_FIGURES_DIR`) goes into
+//! Every `*.png` in `docs/gallery/` (the paper's figures drawn through the FMU by
+//! `cosim-examples/paper_figures.py`; `$EHSV_FIGURES_DIR` names another folder) goes into
 //! `documentation/figures/` and is shown at the end of `documentation/index.html`.
 
 use model_description::{
@@ -130,7 +131,7 @@ fn run(options: &Options) -> Result<(), String> {
         variables_markdown(),
         enumerations_markdown()
     );
-    let figures = figures(&target)?;
+    let figures = figures(&workspace)?;
     let names: Vec<String> = figures.iter().map(|(name, _)| name.clone()).collect();
     let index_html = documentation_html(&names);
     let out_dir = target.join("fmu");
@@ -175,9 +176,10 @@ fn run(options: &Options) -> Result<(), String> {
 /// The FMU's icon, drawn by modelDescription/icon/make_icon.py.
 const ICON: &[u8] = include_bytes!("../../modelDescription/icon/model.png");
 
-/// The paper's figures, if a figures run left them (name, bytes), sorted by name.
-fn figures(target: &Path) -> Result<Vec<(String, Vec<u8>)>, String> {
-    let dir = env::var_os("EHSV_FIGURES_DIR").map_or_else(|| target.join("figures"), PathBuf::from);
+/// The paper's figures (name, bytes), sorted by name; none if the folder is missing.
+fn figures(workspace: &Path) -> Result<Vec<(String, Vec<u8>)>, String> {
+    let dir = env::var_os("EHSV_FIGURES_DIR")
+        .map_or_else(|| workspace.join("docs").join("gallery"), PathBuf::from);
     let Ok(entries) = fs::read_dir(&dir) else { return Ok(vec![]) };
     let mut figures = vec![];
     for entry in entries.flatten() {

@@ -40,6 +40,17 @@ def test_archive_carries_documentation_licence_and_icon(version):
     assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ", root.get("generationDateAndTime"))
 
 
+def test_archive_shows_the_papers_figures(version):
+    """Every figure of the gallery (drawn through the FMU) is packed and shown on the page."""
+    gallery = sorted(p.name for p in (REPO / "docs" / "gallery").glob("*.png"))
+    assert "fig8_opamp_current.png" in gallery
+    with archive(version) as z:
+        page = z.read("documentation/index.html").decode()
+        for name in gallery:
+            assert z.read(f"documentation/figures/{name}") == (REPO / "docs" / "gallery" / name).read_bytes()
+            assert f"figures/{name}" in page, name
+
+
 def test_default_experiment_runs_at_rest(version):
     """The documented choice: i_ref starts at 0, so `fmpy simulate` without inputs runs
     and shows the actuator at rest (no command, no motion)."""
