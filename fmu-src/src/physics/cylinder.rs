@@ -304,7 +304,8 @@ pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Re
     let (volume_a, volume_b) = free_volumes(params, state.x);
     let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
     for (volume, chamber, end) in [(volume_a, "A", "-"), (volume_b, "B", "+")] {
-        if !(volume >= min_volume) {
+        // A NaN position is refused too.
+        if volume.is_nan() || volume < min_volume {
             return Err(format!(
                 "x_piston = {} m is through the {end}stroke/2 end stop into chamber {chamber}'s \
                  dead volume (chamber volume {volume:e} m3, cylinder.V_dead = {} m3): the end \
