@@ -122,7 +122,7 @@ ROWS = (
     # Row 10: four drivers land on K3 K1/Kw (= the paper's 2.5268e-5 to 2e-5) to rounding;
     # the H-bridge's i_coil sample carries part of its PWM ripple (1.2e-4 at that phase).
     Row(10, "all 5 drivers, steady: Q_valve/i_coil (m3/s per mA)", lambda v: f"{v[0]:.6e} .. {v[1]:.6e}",
-        lambda v: all(abs(g / (flow_gain() * 1e-3) - 1) <= 5e-4 for g in v), "K3 K1/Kw = 2.52675e-5 +-0.05 %"),
+        lambda v: all(abs(g / (flow_gain() * 1e-3) - 1) <= 5e-4 for g in v), "K3 K1/Kw +-0.05 %"),
     # Row 11: exact in steady motion and in the equations; what is left is Rodas4's error
     # (rtol 1e-8; measured 1.4e-9) and the trapezoids on 10 us samples (measured 8e-12).
     Row(11, "flow loop, steady: |v - Q_A/A_A|/v; volume balance", lambda v: f"{v[0]:.1e}; {v[1]:.1e}",
