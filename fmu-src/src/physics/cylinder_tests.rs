@@ -92,8 +92,11 @@ fn steady_velocity_equals_port_flow_over_area() {
     let (q_a, q_b) = port_flows(&p, &s, x_s, P_RATED);
     let v_a = q_a / p.area_a();
     let v_b = q_b / p.area_b();
-    assert!((s.v - v_a).abs() < 0.01 * v_a, "v = {} vs Q_A/A_A = {v_a}", s.v);
-    assert!((s.v - v_b).abs() < 0.01 * v_b, "v = {} vs Q_B/A_B = {v_b}", s.v);
+    // Steady motion: constant pressures, no leakage, so continuity makes v = Q/A exactly
+    // whatever beta or the mass; left are the decayed start transient and Rodas4's error
+    // at rtol 1e-8: 1e-9 (measured 1.9e-12).
+    assert!((s.v - v_a).abs() < 1e-9 * v_a, "v = {} vs Q_A/A_A = {v_a}", s.v);
+    assert!((s.v - v_b).abs() < 1e-9 * v_b, "v = {} vs Q_B/A_B = {v_b}", s.v);
     // Independent steady state: for a speed v the port laws give p_A and p_B; bisect on
     // the force balance p_A A_A - p_B A_B = b v + friction (turbulent ports, p_T = 0).
     let half_drop = 0.5 * p.dp_rated;
@@ -137,8 +140,10 @@ fn volume_balance_of_chamber_a() {
     });
     let displaced = p.area_a() * (s.x - s0.x);
     let residual = inflow - displaced - compressed;
+    // Exact in the equations: only the trapezoids on the 10 us samples of the 2 ms spool
+    // ramp remain: 1e-6 (measured 1.5e-7).
     assert!(
-        residual.abs() < 1e-3 * inflow.abs(),
+        residual.abs() < 1e-6 * inflow.abs(),
         "in {inflow}, displaced {displaced}, compressed {compressed}"
     );
     assert!(compressed.abs() > 1e-9, "the test should see compression: {compressed}");
