@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .contract import DRIVERS, PWM_DRIVERS
+from .contract import DRIVERS, PWM_DRIVERS, flow_gain
 
 #: the paper's reference: valve settling with a voltage drive (T_torque, Fig. 4), s
 PAPER_T_TORQUE = 10.8e-3
@@ -119,8 +119,12 @@ ROWS = (
         lambda v: v <= 3.6e-3, "<= 3.6 ms"),
     Row(9, "same at 10 V, and its ratio to row 8", lambda v: f"{v[0] * 1e3:.4f} ms, {v[1] * 100:.0f} %",
         lambda v: 5.4e-3 <= v[0] <= 6.6e-3 and v[1] >= 1.6, "5.4-6.6 ms, >= 160 %"),
+    # Row 10: four drivers land on K3 K1/Kw (= the paper's 2.5268e-5 to 2e-5) to rounding;
+    # the H-bridge's i_coil sample carries part of its PWM ripple (1.2e-4 at that phase).
     Row(10, "all 5 drivers, steady: Q_valve/i_coil (m3/s per mA)", lambda v: f"{v[0]:.6e} .. {v[1]:.6e}",
-        lambda v: all(abs(g / 2.5268e-5 - 1) <= 0.005 for g in v), "2.5268e-5 +-0.5 %"),
+        lambda v: all(abs(g / (flow_gain() * 1e-3) - 1) <= 5e-4 for g in v), "K3 K1/Kw +-0.05 %"),
+    # Row 11: exact in steady motion and in the equations; what is left is Rodas4's error
+    # (rtol 1e-8; measured 1.4e-9) and the trapezoids on 10 us samples (measured 8e-12).
     Row(11, "flow loop, steady: |v - Q_A/A_A|/v; volume balance", lambda v: f"{v[0]:.1e}; {v[1]:.1e}",
-        lambda v: v[0] <= 0.01 and v[1] <= 0.01, "<= 1 %; <= 1 %"),
+        lambda v: v[0] <= 1e-7 and v[1] <= 1e-9, "<= 1e-7; <= 1e-9"),
 )  # fmt: skip

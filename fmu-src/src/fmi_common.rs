@@ -802,16 +802,27 @@ impl Instance {
         if !self.enabled(LOG_EVENTS) || events == StepEvents::default() {
             return;
         }
-        self.log(
-            Status::OK,
-            LOG_EVENTS,
-            &format!(
-                "step [{t}, {}]: driver output reached a supply rail {} time(s), left it {} time(s)",
-                t + h,
-                events.rail_entered,
-                events.rail_left
-            ),
-        );
+        if events.rail_entered + events.rail_left > 0 {
+            self.log(
+                Status::OK,
+                LOG_EVENTS,
+                &format!(
+                    "step [{t}, {}]: driver output reached a supply rail {} time(s), left it {} time(s)",
+                    t + h,
+                    events.rail_entered,
+                    events.rail_left
+                ),
+            );
+        }
+        for (opened, chamber) in events.relief_opened.iter().zip(["A", "B"]) {
+            if *opened {
+                let message = format!(
+                    "step [{t}, {}]: relief valve of chamber {chamber} opened (p_{chamber} above relief.p_crack)",
+                    t + h
+                );
+                self.log(Status::OK, LOG_EVENTS, &message);
+            }
+        }
     }
 
     /// The FMU state behind a pointer the importer hands back, if this instance made it

@@ -136,7 +136,7 @@ impl Model {
     pub fn do_step(&mut self, current_time: f64, step: f64) -> Result<StepEvents, String> {
         self.check_step(current_time, step)?;
         let state = self.state.get_mut();
-        let events = state.physics.advance(&inputs(&state.values), self.time, step)?;
+        let events = state.physics.step(&inputs(&state.values), self.time, step)?;
         state.write_outputs();
         self.time = current_time + step;
         Ok(events)
@@ -317,6 +317,9 @@ pub(crate) fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
             p_tank: v[vr::HYDRAULICS_P_TANK],
             p_cavitation: v[vr::HYDRAULICS_P_CAVITATION],
             dp_cavitation_band: v[vr::HYDRAULICS_DP_CAVITATION_BAND],
+            relief_p_crack: v[vr::RELIEF_P_CRACK],
+            relief_dp_override: v[vr::RELIEF_DP_OVERRIDE],
+            relief_q_rated: v[vr::RELIEF_Q_RATED],
         },
         outer_loop: OuterLoopParams {
             f_sample: v[vr::LOOP_F_SAMPLE],

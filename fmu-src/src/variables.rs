@@ -423,6 +423,13 @@ variable_table! {
     POSITION_KP => param("position.Kp", Some("A/m"), 1.0, "Position PID proportional gain (on x_ref - x_piston)"),
     POSITION_KI => param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain"),
     POSITION_KD => param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain"),
+    // Relief valves of the cylinder (appended: references never move). One per chamber, to
+    // tank; 80 bar is 16 % above the 1000 psi supply, so they stay shut in normal operation
+    // (docs/model.md) and cap what braking a fast piston with the valve does to the chambers.
+    RELIEF_P_CRACK => param("relief.p_crack", Some("Pa"), 8.0e6, "Cracking pressure of the chamber relief valves, above p_tank (0: no relief valves); must exceed p_supply - p_tank")
+        .non_negative(),
+    RELIEF_DP_OVERRIDE => param("relief.dp_override", Some("Pa"), 1.0e6, "Pressure override: rise above the cracking pressure at which a relief valve passes its rated flow").positive(),
+    RELIEF_Q_RATED => param("relief.Q_rated", Some("m3/s"), 4.0e-4, "Rated flow of each relief valve, reached at relief.p_crack + relief.dp_override").positive(),
 }
 
 /// Index of the variable with this name.
@@ -489,7 +496,7 @@ mod tests {
         }
         assert_eq!(VARIABLES[vr::COIL_K_B].name, "coil.K_b");
         assert_eq!(VARIABLES[vr::POSITION_KD].name, "position.Kd");
-        assert_eq!(N_VARIABLES, 76);
+        assert_eq!(N_VARIABLES, 79);
     }
 
     #[test]

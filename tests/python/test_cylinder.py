@@ -120,21 +120,36 @@ def test_row11_steady_piston_velocity_is_port_flow_over_area(steady_flow):
     assert np.min(v) > 0.1, "the piston moves"
     err_a = np.max(np.abs(v - q_a / CYL.area_a) / np.abs(v))
     err_b = np.max(np.abs(v - q_b / CYL.area_b) / np.abs(v))
-    assert err_a <= 0.01, f"v_piston vs Q_A/A_A: {err_a:.3e}"
-    assert err_b <= 0.01, f"v_piston vs Q_B/A_B: {err_b:.3e}"
+    # In steady motion the chamber pressures are constant and nothing leaks, so continuity
+    # makes v = Q/A exactly whatever beta or the mass; what is left is the start transient
+    # (it decays ~10x per 10 ms: 6.5e-5 over t >= 50 ms) and Rodas4's error at rtol 1e-8.
+    # Over the last 10 ms: 1e-7 (measured 1.3e-8).
+    late = r["time"][tail] >= 0.09
+    err_a_late = np.max(np.abs(v - q_a / CYL.area_a)[late] / np.abs(v[late]))
+    err_b_late = np.max(np.abs(v - q_b / CYL.area_b)[late] / np.abs(v[late]))
+    print(f"v vs Q_A/A_A {err_a:.1e} (last 10 ms {err_a_late:.1e})")
+    print(f"v vs Q_B/A_B {err_b:.1e} (last 10 ms {err_b_late:.1e})")
+    assert err_a <= 1e-4 and err_b <= 1e-4, f"{err_a:.3e} {err_b:.3e}"
+    assert err_a_late <= 1e-7, f"v_piston vs Q_A/A_A: {err_a_late:.3e}"
+    assert err_b_late <= 1e-7, f"v_piston vs Q_B/A_B: {err_b_late:.3e}"
     # the flow loop holds the no-load flow Q_valve at the command; the actual port flow
     # differs (the cylinder's area ratio shifts the port drops, see hydraulics.rs)
     assert r["Q_valve"][-1] == pytest.approx(2e-5, rel=1e-3)
 
 
 def test_row11_volume_balance_of_chamber_a(steady_flow):
-    """integral Q_A dt = A_A dx + V_A/beta dp_A within 1 % (the end-point form,
+    """integral Q_A dt = A_A dx + V_A/beta dp_A within 0.2 % (the end-point form,
     V_A = V_dead + A_A (x + S/2) at the end); the path form (V_A/beta dp_A integrated
     along the run) is the exact balance without leakage and must hold far tighter."""
     b = ehsv.volume_balance(steady_flow)
     report = ", ".join(f"{k} {v:.6e}" for k, v in b.items())
-    assert abs(b["residual"]) <= 0.01, report
-    assert abs(b["residual_path"]) <= 1e-4, report
+    print(report)
+    # The end-point form misses (V_A(x_end) - V_A(x)) dp_A/beta along the way: A_A dx dp/beta
+    # ~ 1e-3 of the inflow here: 2e-3 (measured 1.1e-3).
+    assert abs(b["residual"]) <= 2e-3, report
+    # The path form is exact in the equations: only the trapezoids on 10 us samples of a
+    # ms transient remain: 1e-9 (measured 8.1e-12).
+    assert abs(b["residual_path"]) <= 1e-9, report
     assert abs(b["compressed"]) > 1e-3 * abs(b["inflow"]), f"compression is seen (teeth): {report}"
 
 
@@ -144,8 +159,8 @@ def test_row11_volume_balance_of_chamber_a(steady_flow):
 
 
 def test_slow_approach_to_end_stop_holds_rod_and_pressure_below_supply(version):
-    """i_ref 1 mA (~0.15 m/s at the stop), 0.5 s at 1e-4 s: the rod stays within
-    S/2 + 0.1 mm, p_A approaches p_S but never exceeds it, and the rod ends pressed in by
+    """i_ref 1 mA (~0.15 m/s at the stop), 0.5 s at 1e-4 s: the rod stays within the
+    energy bound of its impact, p_A approaches p_S but never exceeds it, and the rod ends pressed in by
     the stall force: penetration p_S A_A / k_endstop (13.9 um), B at tank."""
     r = ehsv.run_scenario(version, h=1e-4, t_stop=0.5, changes={"i_ref": 1e-3})
     x, p_a = r["x_piston"], r["p_A"]
@@ -154,7 +169,12 @@ def test_slow_approach_to_end_stop_holds_rod_and_pressure_below_supply(version):
         f"final p_A {p_a[-1]:.6e} Pa"
     )
     assert x.max() > HALF - 1e-6, "never reached the stop: " + msg
-    assert x.max() <= HALF + 0.1e-3, msg
+    # Energy with the stall force F still pushing: k d^2/2 <= m v^2/2 + F d, so
+    # d <= d_s + sqrt(d_s^2 + m v^2/k), d_s = F/k (the damper only takes energy out).
+    v_impact = r["v_piston"][int(np.argmax(x > HALF)) - 1]
+    d_s = CYL.stall_force(P_S) / CYL.k_endstop
+    bound = d_s + math.sqrt(d_s**2 + CYL.mass * v_impact**2 / CYL.k_endstop)
+    assert x.max() - HALF <= bound, f"{msg}; energy bound {bound * 1e6:.3f} um"
     assert p_a.max() <= P_S, msg
     assert p_a[-1] > 0.999 * P_S, msg
     static = CYL.stall_force(P_S) / CYL.k_endstop
@@ -233,7 +253,8 @@ def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact)
 def test_position_step_settles_without_steady_state_error(version, load):
     """control_mode 2 (P gain 1 A/m, no integral), x_ref 0 -> 10 mm, 0.3 s at 1e-4 s,
     constant F_ext of 0 and +-30 % of the stall force p_S A_A (416 N): the valve is the
-    integrator, so the piston ends on the command (|error| < 1 um); 2 % settling < 0.1 s."""
+    integrator, so the piston ends on the command (|error| < 1 um); 2 % settling in
+    15-50 ms."""
     f_ext = load * CYL.stall_force(P_S)
     r = ehsv.run_scenario(
         version,
@@ -249,7 +270,10 @@ def test_position_step_settles_without_steady_state_error(version, load):
     msg = f"F_ext {f_ext:.1f} N: settles (2 %) in {ts * 1e3:.2f} ms, final error {error * 1e6:.4f} um"
     print(msg)
     assert abs(x[0]) < 1e-9, "starts at mid-stroke"
-    assert ts < 0.1, msg
+    # P loop around the valve's integration: unloaded x' ~ 1.25 (K3 K1/Kw) Kp e / A_A,
+    # time constant 6.4 ms, 2 % in ln(50) tau = 25 ms; the load shifts both port drops and
+    # so the loop gain (measured 19.5, 38.7 and 27.3 ms for 0, +30 %, -30 %).
+    assert 0.015 < ts < 0.05, msg
     assert abs(error) < 1e-6, msg
 
 
@@ -268,3 +292,136 @@ def test_overrunning_load_never_pulls_pressure_below_cavitation_floor(version):
     assert p_min >= floor - 1.0, msg
     assert at_floor > 1e-3, "the run really cavitates: " + msg
     assert math.isfinite(r["x_piston"][-1]) and r["x_piston"][-1] <= HALF + 0.1e-3
+
+
+# --------------------------------------------------------------------------------------
+# Relief valves: a full command reversal at speed (docs/model.md, "Relief valves")
+# --------------------------------------------------------------------------------------
+
+REVERSAL_H = 1e-5  # s, output interval: the spool is sampled finely enough to drive the reference
+REVERSAL_AT = 15e-3  # s, +10 mA until then (the piston extends to ~1.4 m/s), then -10 mA
+REVERSAL_T_STOP = 30e-3
+
+
+def _reversal(version, params, logging_on=False):
+    """i_ref +10 mA from mid-stroke at rest, reversed to -10 mA at 15 ms (x ~ 15 mm): the
+    closing B-to-tank port brakes the 5 kg piston on chamber B, in mid-stroke."""
+    inst = ehsv.Ehsv(version, logging_on=logging_on)
+    names = ("x_spool", *STATE)
+    n, k_rev = round(REVERSAL_T_STOP / REVERSAL_H), round(REVERSAL_AT / REVERSAL_H)
+    try:
+        for k, v in params.items():
+            inst.set(k, v)
+        inst.initialize(start_time=0.0, stop_time=REVERSAL_T_STOP)
+        inst.set("i_ref", 10e-3)
+        rec = np.empty((n + 1, len(names)))
+        rec[0] = inst.get(names)
+        for k in range(n):
+            if k == k_rev:
+                inst.set("i_ref", -10e-3)
+            inst.do_step(k * REVERSAL_H, REVERSAL_H)
+            rec[k + 1] = inst.get(names)
+        inst.free()
+    except Exception as e:
+        raise RuntimeError(f"{e}\n{inst.log_text()}") from e
+    run = {name: rec[:, j] for j, name in enumerate(names)}
+    run["time"] = np.arange(n + 1) * REVERSAL_H
+    run["log"] = inst.log_text()
+    return run
+
+
+def _spool(run):
+    """x_s(t) from the FMU's samples: the cubic through the four nearest (error ~1e-9 of
+    the spool's travel at 10 us samples: its fastest time scale is the 0.2 ms first stage)."""
+    t, xs, h = run["time"], run["x_spool"], REVERSAL_H
+
+    def x_s(tau):
+        k = min(max(int(tau / h) - 1, 0), len(t) - 4)
+        s = tau / h - k
+        y = xs[k : k + 4]
+        return (
+            -y[0] * (s - 1) * (s - 2) * (s - 3) / 6
+            + y[1] * s * (s - 2) * (s - 3) / 2
+            - y[2] * s * (s - 1) * (s - 3) / 2
+            + y[3] * s * (s - 1) * (s - 2) / 6
+        )
+
+    return x_s
+
+
+def _rk4(y0, x_s, t0, t1, dt):
+    """Classical RK4 of ehsv.cylinder_derivatives (the equations written again in Python)
+    with the spool following x_s(t): states at every output sample of [t0, t1]."""
+    y = np.array(y0, float)
+    f = lambda t, z: np.array(ehsv.cylinder_derivatives(z, x_s(t), P_S, 0.0))  # noqa: E731
+    per = round(REVERSAL_H / dt)
+    out = [y]
+    t = t0
+    for _ in range(round((t1 - t0) / REVERSAL_H)):
+        for _ in range(per):
+            k1 = f(t, y)
+            k2 = f(t + dt / 2, y + dt / 2 * k1)
+            k3 = f(t + dt / 2, y + dt / 2 * k2)
+            k4 = f(t + dt, y + dt * k3)
+            y = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            t += dt
+        out.append(y)
+    return np.array(out)
+
+
+def test_reversal_without_relief_peaks_as_an_independent_integration_says(version):
+    """DOCUMENTATION of what the relief valves are for: with them removed
+    (relief.p_crack = 0) the reversal drives p_B to several times p_S in mid-stroke.
+
+    The peak is pinned against an independent integration: classical RK4 at 0.25 us of
+    the cylinder equations as written again in Python (ehsv.cylinder_derivatives, which
+    has no relief term), from the FMU's state at the reversal, with the spool following
+    the FMU's recorded x_spool. Independent of the FMU's numerics (explicit fixed-step
+    RK4 against adaptive Rodas4 with an analytic Jacobian) and of its Rust code for the
+    equations; only the spool path is shared. RK4's own spread between 0.5 and 0.25 us
+    steps is checked to be far below the tolerance."""
+    r = _reversal(version, {"relief.p_crack": 0.0})
+    k0 = round(REVERSAL_AT / REVERSAL_H)
+    window = slice(k0, k0 + round(5e-3 / REVERSAL_H) + 1)
+    p_b = r["p_B"][window]
+    peak = float(p_b.max())
+    at = int(np.argmax(p_b))
+    facts = (
+        f"p_B peak {peak * 1e-6:.4f} MPa (p_S + {(peak - P_S) * 1e-6:.3f} MPa) "
+        f"at {r['time'][window][at] * 1e3:.2f} ms, x {r['x_piston'][window][at] * 1e3:.2f} mm"
+    )
+    print(facts)
+    assert abs(r["x_piston"][window]).max() < HALF - 10e-3, "mid-stroke: " + facts
+    assert peak > 2 * P_S, facts
+    y0 = [r[name][k0] for name in STATE]
+    x_s = _spool(r)
+    t0, t1 = r["time"][window][0], r["time"][window][-1]
+    fine = _rk4(y0, x_s, t0, t1, 0.25e-6)
+    coarse = _rk4(y0, x_s, t0, t1, 0.5e-6)
+    ref = float(fine[:, 1].max())
+    spread = abs(float(coarse[:, 1].max()) - ref) / ref
+    print(
+        f"reference peak {ref * 1e-6:.4f} MPa, FMU - reference {(peak - ref) / ref:.1e}, "
+        f"RK4 spread {spread:.1e}"
+    )
+    # RK4's spread 1.9e-8, the FMU (Rodas4 at rtol 1e-8) 2.3e-9 from it (measured)
+    assert spread < 1e-7
+    assert peak == pytest.approx(ref, rel=1e-6), facts
+    assert np.max(np.abs(r["p_B"][window] - fine[:, 1])) < 1e-6 * ref
+
+
+def test_reversal_with_relief_stays_within_crack_plus_override_and_logs_it(version):
+    """The same reversal with the default relief valves: both chambers stay within
+    p_T + relief.p_crack + relief.dp_override, the valve did open (p_B above cracking),
+    and logEvents reports it."""
+    r = _reversal(version, {}, logging_on=True)
+    crack = ehsv.NOMINAL["hydraulics.p_tank"] + ehsv.NOMINAL["relief.p_crack"]
+    limit = crack + ehsv.NOMINAL["relief.dp_override"]
+    peak_a, peak_b = float(r["p_A"].max()), float(r["p_B"].max())
+    print(
+        f"with relief: p_A peak {peak_a * 1e-6:.4f} MPa, p_B peak {peak_b * 1e-6:.4f} MPa "
+        f"(limit {limit * 1e-6} MPa)"
+    )
+    assert max(peak_a, peak_b) <= limit
+    assert peak_b > crack, "the relief acted"
+    assert "relief valve of chamber B opened" in r["log"], r["log"][-2000:]

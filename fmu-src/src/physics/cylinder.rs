@@ -29,6 +29,17 @@
 //!   the total contact force is `max(0, k d + c d')`, so a separating stop never pulls.
 //! * **Leakage**: internal `C_leak (p_A - p_B)` from A to B, external `C_leak_external (p - p_T)`
 //!   from each chamber to the drain. Both default to 0.
+//! * **Relief valves**, one from each chamber to tank (port relief, not cross-port): shut
+//!   while `p - p_T <= p_crack`, then `Q = Q_rated (d/dp_ov)^2` for the rise
+//!   `d = p - p_T - p_crack` up to the override `dp_ov` and `Q_rated (2 d/dp_ov - 1)` beyond
+//!   (the slope matched: C1, so the Jacobian is finite and exact, and rated flow at crack +
+//!   override). Chamber to tank bounds each chamber's pressure whatever the other one
+//!   holds (a cross-port valve bounds only `p_A - p_B`, and from the rod side it cannot fill
+//!   the larger cap side anyway). `p_crack = 0` removes them. The supply must stay below
+//!   the setting (checked), so they are shut in normal operation.
+//! * **Chamber volumes** are clamped at [`MIN_VOLUME_FRACTION`] of the dead volume so the
+//!   equations stay finite, but a state that reaches the clamp (the piston through the end
+//!   of the cylinder) is refused ([`check_inside`]), never integrated on.
 //! * **Equilibrium start**: with `x_s = 0` both chambers are sealed, so any pressure pair on the
 //!   force balance is an equilibrium. We take the one an (infinitesimally) underlapped real valve
 //!   would settle to at null: its four metering edges balance leak flows when
@@ -90,6 +101,12 @@ pub(crate) struct CylinderParams {
     pub p_cavitation: f64,
     /// Band above the floor over which an emptying chamber's bulk modulus fades out (Pa).
     pub dp_cavitation_band: f64,
+    /// Relief valves (chamber to tank): cracking pressure above tank, 0 = none (Pa).
+    pub relief_p_crack: f64,
+    /// Rise above cracking at which a relief valve passes `relief_q_rated` (Pa).
+    pub relief_dp_override: f64,
+    /// Rated flow of a relief valve (m3/s).
+    pub relief_q_rated: f64,
 }
 
 #[cfg(test)]
@@ -132,6 +149,9 @@ impl CylinderParams {
             p_tank: c.p_tank,
             p_cavitation: c.p_cavitation,
             dp_cavitation_band: c.dp_cavitation_band,
+            relief_p_crack: c.relief_p_crack,
+            relief_dp_override: c.relief_dp_override,
+            relief_q_rated: c.relief_q_rated,
         };
         p.validate()?;
         Ok(p)
@@ -152,6 +172,20 @@ impl CylinderParams {
             return Err(format!(
                 "hydraulics.p_cavitation = {} rejected: must be below hydraulics.p_tank = {}",
                 self.p_cavitation, self.p_tank
+            ));
+        }
+        Ok(())
+    }
+
+    /// The relief valves must be set above the supply, or they would open in normal
+    /// operation (a chamber holds up to p_S at stall or on a stop).
+    pub(crate) fn check_supply(&self, p_supply: f64) -> Result<(), String> {
+        if self.relief_p_crack > 0.0 && p_supply - self.p_tank >= self.relief_p_crack {
+            return Err(format!(
+                "p_supply = {p_supply} Pa is not below the relief valves' setting \
+                 hydraulics.p_tank + relief.p_crack = {} Pa: they would open in normal \
+                 operation; raise relief.p_crack, or set it to 0 to remove them",
+                self.p_tank + self.relief_p_crack
             ));
         }
         Ok(())
@@ -252,9 +286,58 @@ fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64) -> f64 {
     u * (2.0 - u)
 }
 
-/// Chamber volumes never shrink below this fraction of the dead volume (only reachable with
-/// absurd end-stop penetration; keeps the pressure equations finite).
+/// Chamber volumes never shrink below this fraction of the dead volume (keeps the pressure
+/// equations finite). Reaching it means the piston went through the end of the cylinder:
+/// [`check_inside`] refuses such a state.
 pub(crate) const MIN_VOLUME_FRACTION: f64 = 1e-3;
+
+/// Chamber volumes `(V_A, V_B)` at position `x`, before the clamp (m3).
+fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
+    let half = 0.5 * params.stroke;
+    (params.v_dead + params.area_a() * (x + half), params.v_dead + params.area_b() * (half - x))
+}
+
+/// Refuses a state in which a chamber volume reached its clamp: the piston is through the
+/// end stop and the dead volume (an end stop that cannot hold the load), where the
+/// clamped equations no longer describe anything physical.
+pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Result<(), String> {
+    let (volume_a, volume_b) = free_volumes(params, state.x);
+    let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
+    for (volume, chamber, end) in [(volume_a, "A", "-"), (volume_b, "B", "+")] {
+        // A NaN position is refused too.
+        if volume.is_nan() || volume < min_volume {
+            return Err(format!(
+                "x_piston = {} m is through the {end}stroke/2 end stop into chamber {chamber}'s \
+                 dead volume (chamber volume {volume:e} m3, cylinder.V_dead = {} m3): the end \
+                 stop (cylinder.k_endstop) cannot hold the load; step refused",
+                state.x, params.v_dead
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Flow through a chamber's relief valve to tank at chamber pressure `p` (m3/s), and its
+/// slope `dQ/dp`: zero up to the cracking pressure, quadratic over the override, then
+/// linear with the slope matched (C1).
+pub(crate) fn relief_flow(params: &CylinderParams, p: f64) -> (f64, f64) {
+    let rise = p - params.p_tank - params.relief_p_crack;
+    if params.relief_p_crack == 0.0 || rise <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let (q_rated, override_) = (params.relief_q_rated, params.relief_dp_override);
+    let s = rise / override_;
+    if s < 1.0 {
+        (q_rated * s * s, 2.0 * q_rated * s / override_)
+    } else {
+        (q_rated * (2.0 * s - 1.0), 2.0 * q_rated / override_)
+    }
+}
+
+/// Which chambers' relief valves pass flow at this state: `[A, B]`.
+pub(crate) fn relief_open(params: &CylinderParams, state: &CylinderState) -> [bool; 2] {
+    [state.p_a, state.p_b].map(|p| relief_flow(params, p).0 > 0.0)
+}
 
 /// `[p_A', p_B', x', v']` for spool position `x_s`.
 pub(crate) fn derivatives(
@@ -265,16 +348,17 @@ pub(crate) fn derivatives(
     f_ext: f64,
 ) -> [f64; 4] {
     let (area_a, area_b) = (params.area_a(), params.area_b());
-    let half = 0.5 * params.stroke;
     let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
-    let volume_a = (params.v_dead + area_a * (state.x + half)).max(min_volume);
-    let volume_b = (params.v_dead + area_b * (half - state.x)).max(min_volume);
+    let (volume_a, volume_b) = free_volumes(params, state.x);
+    let (volume_a, volume_b) = (volume_a.max(min_volume), volume_b.max(min_volume));
     let (q_a, q_b) = port_flows(params, state, x_s, p_supply);
     let q_internal = params.c_leak * (state.p_a - state.p_b);
     let q_external_a = params.c_leak_external * (state.p_a - params.p_tank);
     let q_external_b = params.c_leak_external * (state.p_b - params.p_tank);
-    let inflow_a = q_a - area_a * state.v - q_internal - q_external_a;
-    let inflow_b = -q_b + area_b * state.v + q_internal - q_external_b;
+    let relief_a = relief_flow(params, state.p_a).0;
+    let relief_b = relief_flow(params, state.p_b).0;
+    let inflow_a = q_a - area_a * state.v - q_internal - q_external_a - relief_a;
+    let inflow_b = -q_b + area_b * state.v + q_internal - q_external_b - relief_b;
     let dp_a = params.beta / volume_a * inflow_a * cavitation_factor(params, state.p_a, inflow_a);
     let dp_b = params.beta / volume_b * inflow_b * cavitation_factor(params, state.p_b, inflow_b);
     let force = state.p_a * area_a - state.p_b * area_b - friction(params, state.v)

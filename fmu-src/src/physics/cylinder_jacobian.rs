@@ -2,7 +2,9 @@
 //! integrator's Jacobian and time derivative (checked against differences in the
 //! cylinder's tests).
 
-use super::cylinder::{CylinderParams, Mat4, Vec4, MIN_VOLUME_FRACTION, N_STATES, PA, PB, V, X};
+use super::cylinder::{
+    relief_flow, CylinderParams, Mat4, Vec4, MIN_VOLUME_FRACTION, N_STATES, PA, PB, V, X,
+};
 use super::valve::{regularised_sqrt, regularised_sqrt_slope};
 
 /// The model linearised at a state: `f` exactly as [`super::cylinder::derivatives`] computes it, the analytic
@@ -60,8 +62,10 @@ pub(crate) fn linearise(
     let q_internal = params.c_leak * (p_a_raw - p_b_raw);
     let q_external_a = params.c_leak_external * (p_a_raw - params.p_tank);
     let q_external_b = params.c_leak_external * (p_b_raw - params.p_tank);
-    let inflow_a = q_a - area_a * v - q_internal - q_external_a;
-    let inflow_b = -q_b + area_b * v + q_internal - q_external_b;
+    let (relief_a, drelief_a) = relief_flow(params, p_a_raw);
+    let (relief_b, drelief_b) = relief_flow(params, p_b_raw);
+    let inflow_a = q_a - area_a * v - q_internal - q_external_a - relief_a;
+    let inflow_b = -q_b + area_b * v + q_internal - q_external_b - relief_b;
     // Cavitation factors and their slopes in the chamber's own pressure.
     let factor = |p: f64, inflow: f64| -> (f64, f64) {
         if inflow >= 0.0 {
@@ -112,14 +116,14 @@ pub(crate) fn linearise(
 
     let mut jac: Mat4 = [[0.0; N_STATES]; N_STATES];
     let (c_leak, c_ext) = (params.c_leak, params.c_leak_external);
-    // d inflow_a / d(p_a, p_b, x, v) = (dqa_dpa - c_leak - c_ext, c_leak, 0, -A_A)
-    jac[PA][PA] = stiff_a * (cf_a * (dqa_dpa - c_leak - c_ext) + inflow_a * dcfa_dpa);
+    // d inflow_a / d(p_a, p_b, x, v) = (dqa_dpa - c_leak - c_ext - drelief_a, c_leak, 0, -A_A)
+    jac[PA][PA] = stiff_a * (cf_a * (dqa_dpa - c_leak - c_ext - drelief_a) + inflow_a * dcfa_dpa);
     jac[PA][PB] = stiff_a * cf_a * c_leak;
     jac[PA][X] = -stiff_a / volume_a * dva_dx * inflow_a * cf_a;
     jac[PA][V] = -stiff_a * cf_a * area_a;
-    // d inflow_b / d(p_a, p_b, x, v) = (c_leak, -dqb_dpb - c_leak - c_ext, 0, A_B)
+    // d inflow_b / d(p_a, p_b, x, v) = (c_leak, -dqb_dpb - c_leak - c_ext - drelief_b, 0, A_B)
     jac[PB][PA] = stiff_b * cf_b * c_leak;
-    jac[PB][PB] = stiff_b * (cf_b * (-dqb_dpb - c_leak - c_ext) + inflow_b * dcfb_dpb);
+    jac[PB][PB] = stiff_b * (cf_b * (-dqb_dpb - c_leak - c_ext - drelief_b) + inflow_b * dcfb_dpb);
     jac[PB][X] = -stiff_b / volume_b * dvb_dx * inflow_b * cf_b;
     jac[PB][V] = stiff_b * cf_b * area_b;
     jac[X][V] = 1.0;

@@ -128,6 +128,9 @@ fn mode_system(c: &Coefficients, mode: Mode) -> ModeSystem {
 pub struct StepEvents {
     pub rail_entered: u32,
     pub rail_left: u32,
+    /// Relief valves of chambers `[A, B]` open at the end of the step that were shut at its
+    /// start (seen at communication points).
+    pub relief_opened: [bool; 2],
 }
 
 /// The whole physical state and what is needed to advance it.
@@ -218,6 +221,7 @@ impl Physics {
             cache: PropagatorCache::new(),
         };
         let held = Held::new(&params, inputs);
+        params.cylinder.check_supply(held.p_supply)?;
         physics.outer = OuterLoop::at_start(&params.loops, held.reference, start_time);
         physics.cylinder = cylinder::equilibrium(&params.cylinder, held.p_supply, held.f_ext);
         let i_cmd = physics.current_command(&held);
@@ -292,5 +296,52 @@ impl Physics {
             v_piston: c.v_piston,
             f_hydraulic: c.f_hydraulic,
         }
+    }
+}
+
+impl Physics {
+    /// One communication step: [`Physics::advance`] with the cylinder's checks around it.
+    /// Refuses, leaving the state as it was, a supply at or above the relief valves'
+    /// setting and a step that ends with the piston through the end of the cylinder;
+    /// reports relief valves that opened.
+    pub(crate) fn step(
+        &mut self,
+        inputs: &Inputs,
+        t_start: f64,
+        step: f64,
+    ) -> Result<StepEvents, String> {
+        let c = &self.params.cylinder;
+        c.check_supply(inputs.p_supply)?;
+        let relief_before = cylinder::relief_open(c, &self.cylinder);
+        let saved = (
+            self.z,
+            self.mode,
+            self.stops,
+            self.digital,
+            self.outer,
+            self.cylinder,
+            self.cylinder_memory,
+            self.p_supply,
+        );
+        let mut events = self.advance(inputs, t_start, step)?;
+        if let Err(e) = cylinder::check_inside(&self.params.cylinder, &self.cylinder) {
+            // As `advance` does on its own errors.
+            (
+                self.z,
+                self.mode,
+                self.stops,
+                self.digital,
+                self.outer,
+                self.cylinder,
+                self.cylinder_memory,
+                self.p_supply,
+            ) = saved;
+            self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
+            self.cylinder_rest = None;
+            return Err(e);
+        }
+        let relief_after = cylinder::relief_open(&self.params.cylinder, &self.cylinder);
+        events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);
+        Ok(events)
     }
 }

@@ -122,6 +122,10 @@ pub struct CylinderLoadParams {
     pub p_tank: f64,
     pub p_cavitation: f64,
     pub dp_cavitation_band: f64,
+    /// Relief valves, chamber to tank: cracking pressure above tank (0: none), override, rated flow.
+    pub relief_p_crack: f64,
+    pub relief_dp_override: f64,
+    pub relief_q_rated: f64,
 }
 
 /// Gains (Kp, Ki, Kd) of a PID.

@@ -45,3 +45,45 @@ pub fn settling_to_end(trace: &[(f64, f64)], band: f64) -> f64 {
     let (first, last) = (trace[0].1, trace.last().unwrap().1);
     settling_time(trace, last - first, last, band)
 }
+
+/// The start value of a variable in the table (the defaults are never re-declared here).
+pub fn start(vr: usize) -> f64 {
+    ehsv_actuator::variables::VARIABLES[vr].start
+}
+
+/// The value of an enumeration item, by the names of the table (`enum_value("DriverType",
+/// "opamp_pi")`), so tests name drivers and control modes instead of numbering them.
+pub fn enum_value(enumeration: &str, item: &str) -> f64 {
+    let e = ehsv_actuator::variables::ENUMERATIONS
+        .iter()
+        .find(|e| e.name == enumeration)
+        .unwrap_or_else(|| panic!("no enumeration {enumeration}"));
+    let (value, _, _) = e
+        .items
+        .iter()
+        .find(|(_, name, _)| *name == item)
+        .unwrap_or_else(|| panic!("{enumeration} has no item {item}"));
+    *value as f64
+}
+
+/// A `driver` setting by name.
+pub fn driver(name: &str) -> (&'static str, f64) {
+    ("driver", enum_value("DriverType", name))
+}
+
+/// A `control_mode` setting by name.
+pub fn control_mode(name: &str) -> (&'static str, f64) {
+    ("control_mode", enum_value("ControlMode", name))
+}
+
+/// Piston area on the A side from the table's bore (m2).
+pub fn area_a() -> f64 {
+    let bore = start(ehsv_actuator::variables::vr::CYLINDER_BORE);
+    std::f64::consts::FRAC_PI_4 * bore * bore
+}
+
+/// Annulus area on the B side from the table's bore and rod (m2).
+pub fn area_b() -> f64 {
+    let rod = start(ehsv_actuator::variables::vr::CYLINDER_ROD);
+    area_a() - std::f64::consts::FRAC_PI_4 * rod * rod
+}
