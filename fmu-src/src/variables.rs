@@ -555,6 +555,24 @@ mod tests {
     }
 
     #[test]
+    fn every_input_has_a_range_and_only_parameters_are_tunable() {
+        for v in VARIABLES.iter() {
+            if v.causality == Input {
+                assert!(v.min.is_some() && v.max.is_some(), "{} has no range", v.name);
+            }
+            if v.variability == Tunable {
+                assert_eq!(v.causality, Parameter, "{}", v.name);
+            }
+        }
+        let i_ref = &VARIABLES[vr::I_REF];
+        assert!(i_ref.check(5.0).unwrap_err().contains("[-0.1, 0.1]"), "5 mA typed in A");
+        assert_eq!(VARIABLES[vr::LOOP_I_MAX].start, VALVE_RATED_CURRENT);
+        for structural in [vr::DRIVER, vr::CONTROL_MODE, vr::CYLINDER_STROKE, vr::LOOP_F_SAMPLE] {
+            assert_eq!(VARIABLES[structural].variability, Fixed, "{}", VARIABLES[structural].name);
+        }
+    }
+
+    #[test]
     fn token_is_a_guid() {
         let t = interface_token();
         assert_eq!(t.len(), 38);
