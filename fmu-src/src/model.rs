@@ -308,13 +308,15 @@ impl Model {
     /// Does `warning`'s condition hold for the inputs in force (cheap, no allocation)?
     pub fn input_warning(&self, warning: InputWarning) -> bool {
         let v = &self.state.borrow().values;
-        let current_mode = v[vr::CONTROL_MODE] == 0.0;
         match warning {
             InputWarning::CurrentAboveRating => {
-                current_mode && v[vr::I_REF].abs() > VALVE_RATED_CURRENT
+                control_mode(v) == ControlMode::Current && v[vr::I_REF].abs() > VALVE_RATED_CURRENT
             }
             InputWarning::NoDriverSupply => {
-                v[vr::V_SUPPLY] == 0.0 && v[vr::DRIVER] != 0.0 && asks_for_motion(v)
+                // The ideal current driver has no supply to miss.
+                let ideal =
+                    matches!(DriverKind::from_value(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
+                v[vr::V_SUPPLY] == 0.0 && !ideal && asks_for_motion(v)
             }
             InputWarning::NoHydraulicSupply => v[vr::P_SUPPLY] == 0.0 && asks_for_motion(v),
         }
@@ -350,19 +352,26 @@ impl Model {
 
 /// Does the command of the active control mode ask the actuator to move?
 fn asks_for_motion(v: &[f64; N_VARIABLES]) -> bool {
-    match v[vr::CONTROL_MODE] as i64 {
-        0 => v[vr::I_REF] != 0.0,
-        1 => v[vr::Q_REF] != 0.0,
-        _ => (v[vr::X_REF] - v[vr::X_PISTON]).abs() > POSITION_AT_REST,
+    match control_mode(v) {
+        ControlMode::Current => v[vr::I_REF] != 0.0,
+        ControlMode::Flow => v[vr::Q_REF] != 0.0,
+        ControlMode::Position => (v[vr::X_REF] - v[vr::X_PISTON]).abs() > POSITION_AT_REST,
     }
 }
 
 fn command_text(v: &[f64; N_VARIABLES]) -> String {
-    match v[vr::CONTROL_MODE] as i64 {
-        0 => format!("i_ref = {} A", v[vr::I_REF]),
-        1 => format!("Q_ref = {} m3/s", v[vr::Q_REF]),
-        _ => format!("x_ref = {} m (x_piston = {} m)", v[vr::X_REF], v[vr::X_PISTON]),
+    match control_mode(v) {
+        ControlMode::Current => format!("i_ref = {} A", v[vr::I_REF]),
+        ControlMode::Flow => format!("Q_ref = {} m3/s", v[vr::Q_REF]),
+        ControlMode::Position => {
+            format!("x_ref = {} m (x_piston = {} m)", v[vr::X_REF], v[vr::X_PISTON])
+        }
     }
+}
+
+/// The control mode in the value array (checked when set, so always one of the three).
+fn control_mode(v: &[f64; N_VARIABLES]) -> ControlMode {
+    ControlMode::from_value(v[vr::CONTROL_MODE]).unwrap_or(ControlMode::Current)
 }
 
 impl State {
