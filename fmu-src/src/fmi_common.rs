@@ -15,8 +15,9 @@ use std::collections::HashMap;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+use crate::fmi_state_machine::settable_in;
 pub(crate) use crate::fmi_state_machine::{Call, State, Version};
-use crate::model::{communication_point_tolerance, Model};
+use crate::model::{communication_point_tolerance, InputWarning, Model};
 use crate::physics::StepEvents;
 use crate::variables::{Causality, VarType, Variability, VARIABLES};
 
@@ -27,7 +28,12 @@ pub const LOG_CATEGORIES: &[(&str, &str)] = &[
         "logEvents",
         "Events inside a communication step: the driver output reaching or leaving a supply rail",
     ),
-    ("logStatusWarning", "Calls that return Warning or Discard"),
+    (
+        "logStatusWarning",
+        "Calls that return Warning or Discard: a doStep where i_ref rises above the valve's \
+         rated current, or a supply (V_supply, p_supply) is 0 while a command asks for motion \
+         (once when the condition begins)",
+    ),
     ("logStatusError", "Calls that return Error (always logged when a logger callback is given)"),
     ("logAll", "Everything, including one line per call into the FMU"),
 ];
@@ -114,6 +120,8 @@ pub(crate) struct Instance {
     /// address the importer holds: FreeInstance frees what is left, and a pointer that is
     /// not in here (freed, foreign, garbage) is refused without being read.
     fmu_states: HashMap<usize, Box<SavedState>>,
+    /// Which [`InputWarning`]s held at the last doStep: each is reported when it begins.
+    warned: [bool; InputWarning::ALL.len()],
 }
 
 /// An FMU state behind `fmi2FMUstate` / `fmi3FMUState`: everything needed to continue
@@ -241,6 +249,7 @@ pub(crate) unsafe fn instantiate(
         state: Instantiated,
         stop_time: None,
         fmu_states: HashMap::new(),
+        warned: [false; InputWarning::ALL.len()],
     });
     inst.trace(|| format!("{func}: instance '{shown}' created"));
     Box::into_raw(inst).cast()
@@ -543,32 +552,33 @@ impl Instance {
         Ok(vr as usize)
     }
 
-    /// May variable `index` be set in the current state? (FMI 2 and 3 agree for the
-    /// causalities used here.)
+    /// May variable `index` be set in the current state? (The table's
+    /// [`settable_in`](crate::fmi_state_machine::settable_in).)
     fn check_settable(&self, index: usize) -> Result<(), Status> {
         let var = &VARIABLES[index];
-        let allowed: &[State] = match (var.causality, var.variability) {
-            (Causality::Parameter, Variability::Fixed) => &[Instantiated, InitializationMode],
-            (Causality::Parameter, _) => &[Instantiated, InitializationMode, StepMode],
-            (Causality::Input, _) => &[Instantiated, InitializationMode, StepMode],
-            (Causality::Output | Causality::Independent, _) => {
-                let kind = if var.causality == Causality::Output {
-                    "an output"
-                } else {
-                    "the independent variable"
-                };
-                return self.error(&format!("{} is {kind} and cannot be set", var.name));
-            }
+        let Some(allowed) = settable_in(var.causality, var.variability) else {
+            let kind = if var.causality == Causality::Output {
+                "an output"
+            } else {
+                "the independent variable"
+            };
+            return self.error(&format!("{} is {kind} and cannot be set", var.name));
         };
-        if !allowed.contains(&self.state) {
-            let kind = match var.causality {
-                Causality::Input => "an input".to_string(),
-                _ => format!("a {:?} parameter", var.variability).to_lowercase(),
+        if !allowed.contains(self.state) {
+            let kind = match (var.causality, var.variability) {
+                (Causality::Input, _) => "an input",
+                (_, Variability::Fixed) => {
+                    "a fixed parameter (structure or hardware): it can be set only before \
+                     initialisation ends (or after Reset); the tunable parameters and the \
+                     inputs can be set during the run"
+                }
+                _ => "a tunable parameter",
             };
             return self.error(&format!(
-                "{} is {kind} and cannot be set in state {}",
+                "{} is {kind}; it cannot be set in state {} (only in {})",
                 var.name,
-                self.state.name(self.version)
+                self.state.name(self.version),
+                allowed.names(self.version)
             ));
         }
         Ok(())
@@ -633,21 +643,9 @@ impl Instance {
             let index = self.resolve(vr, A::NAME, A::accepts)?;
             self.check_settable(index)?;
         }
-        let result = match vrs {
-            [] => Ok(()),
-            [vr] => self.model.set(*vr as usize, A::from_c(vals[0])),
-            _ => {
-                let mut scratch = self.model.clone();
-                let r = vrs
-                    .iter()
-                    .zip(vals)
-                    .try_for_each(|(&vr, &c)| scratch.set(vr as usize, A::from_c(c)));
-                if r.is_ok() {
-                    self.model = scratch;
-                }
-                r
-            }
-        };
+        // All or nothing; tunable parameters set in Step Mode rebuild the physics here.
+        let result =
+            self.model.set_all(vrs.iter().zip(vals).map(|(&vr, &c)| (vr as usize, A::from_c(c))));
         match result {
             Ok(()) => Ok(Status::OK),
             Err(e) => self.error(&e),
@@ -765,6 +763,7 @@ impl Instance {
         self.model.reset();
         self.state = Instantiated;
         self.stop_time = None;
+        self.warned = [false; InputWarning::ALL.len()];
         Ok(Status::OK)
     }
 
@@ -783,10 +782,11 @@ impl Instance {
                 ));
             }
         }
+        let conditions = InputWarning::ALL.map(|w| self.model.input_warning(w));
         match self.model.do_step(t, h) {
             Ok(events) => {
                 self.log_events(t, h, events);
-                Ok(Status::OK)
+                Ok(self.warn_about_inputs(t, conditions))
             }
             Err(e) => {
                 self.state = State::Error;
@@ -796,6 +796,32 @@ impl Instance {
                 ))
             }
         }
+    }
+
+    /// Warning (and one logStatusWarning line each) for the input conditions that began
+    /// with this step; OK while none began (a lasting condition is not repeated).
+    fn warn_about_inputs(&mut self, t: f64, conditions: [bool; InputWarning::ALL.len()]) -> Status {
+        let mut status = Status::OK;
+        let log = self.enabled(LOG_WARNING);
+        for ((warning, holds), warned) in
+            InputWarning::ALL.into_iter().zip(conditions).zip(self.warned.iter_mut())
+        {
+            if holds && !*warned {
+                status = Status::Warning;
+                if log {
+                    let text = self.model.input_warning_text(warning);
+                    let message = format!("{}: step from {t}: {text}", self.func);
+                    self.logger.emit(
+                        &self.name,
+                        Status::Warning,
+                        LOG_CATEGORIES[LOG_WARNING].0,
+                        &message,
+                    );
+                }
+            }
+            *warned = holds;
+        }
+        status
     }
 
     fn log_events(&self, t: f64, h: f64, events: StepEvents) {

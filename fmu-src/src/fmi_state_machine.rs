@@ -121,6 +121,7 @@ pub(crate) enum Call {
     Unsupported,
 }
 
+use crate::variables::{Causality, Variability};
 use State::{Error, InitializationMode as Init, Instantiated, StepMode as Step, Terminated};
 
 const ANY: States = States::of(&State::ALL);
@@ -149,6 +150,21 @@ impl Call {
             Call::GetStatus => States::of(&[Step, Terminated, Error]),
             Call::Unsupported => ANY,
         }
+    }
+}
+
+/// The second half of the table for setters: the states in which a variable of this
+/// causality and variability may be set (FMI 2.0 and 3.0 agree for the kinds used here).
+/// Inputs and tunable parameters: also in Step Mode (FMI 2 StepComplete), taking effect
+/// at the next communication point; fixed parameters: only until initialisation ends.
+/// Outputs and the independent variable: never (`None`).
+pub(crate) const fn settable_in(causality: Causality, variability: Variability) -> Option<States> {
+    match (causality, variability) {
+        (Causality::Parameter, Variability::Fixed) => Some(States::of(&[Instantiated, Init])),
+        (Causality::Parameter | Causality::Input, _) => {
+            Some(States::of(&[Instantiated, Init, Step]))
+        }
+        (Causality::Output | Causality::Independent, _) => None,
     }
 }
 
@@ -201,6 +217,27 @@ mod tests {
             ANY.names(Version::Fmi2),
             "Instantiated, InitializationMode, StepComplete, Terminated, Error"
         );
+    }
+
+    #[test]
+    fn tunable_parameters_and_inputs_are_settable_in_step_mode_fixed_ones_not() {
+        let states = |c, v| -> Vec<State> {
+            let set = settable_in(c, v).expect("settable");
+            State::ALL.into_iter().filter(|s| set.contains(*s)).collect()
+        };
+        use Causality::{Input, Output, Parameter};
+        assert_eq!(states(Parameter, Variability::Tunable), [Instantiated, Init, Step]);
+        assert_eq!(states(Input, Variability::Continuous), [Instantiated, Init, Step]);
+        assert_eq!(states(Parameter, Variability::Fixed), [Instantiated, Init]);
+        assert_eq!(settable_in(Output, Variability::Continuous), None);
+        // Each settable state is one where the setters are allowed at all.
+        for v in crate::variables::VARIABLES.iter() {
+            if let Some(set) = settable_in(v.causality, v.variability) {
+                for s in State::ALL.into_iter().filter(|s| set.contains(*s)) {
+                    assert!(Call::SetValues.allowed().contains(s), "{} in {s:?}", v.name);
+                }
+            }
+        }
     }
 
     #[test]

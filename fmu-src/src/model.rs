@@ -11,7 +11,9 @@ use crate::physics::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
     OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams,
 };
-use crate::variables::{start_values, vr, Causality, N_VARIABLES, VARIABLES};
+use crate::variables::{
+    start_values, vr, Causality, Variability, N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
+};
 
 #[derive(Clone)]
 pub struct Model {
@@ -73,20 +75,52 @@ impl Model {
         Some(self.state.borrow().values[index])
     }
 
-    /// Stores a parameter or input after checking type and range. Which variables may be
-    /// set in which FMI state is the FMI layer's business; this checks the value only.
+    /// Stores a parameter or input after checking type and range; see [`Model::set_all`].
     pub fn set(&mut self, index: usize, value: f64) -> Result<(), String> {
-        let var = VARIABLES.get(index).ok_or_else(|| format!("unknown value reference {index}"))?;
-        if !matches!(var.causality, Causality::Parameter | Causality::Input) {
-            return Err(format!("{} is {:?}: it cannot be set", var.name, var.causality));
-        }
-        var.check(value)?;
+        self.set_all([(index, value)])
+    }
+
+    /// Stores parameters and inputs `(value reference, value)`, all or nothing: each value
+    /// is checked against its type and range; once initialised, a fixed parameter is
+    /// refused, x_ref must lie within the stroke, and new values of tunable parameters
+    /// rebuild the physics here (not in doStep) from the state reached, so they take
+    /// effect at the next communication point (the outputs stay those of the last one).
+    /// Which variables may be set in which FMI state is otherwise the FMI layer's business.
+    pub fn set_all(
+        &mut self,
+        changes: impl IntoIterator<Item = (usize, f64)>,
+    ) -> Result<(), String> {
+        let initialized = self.initialized;
         let state = self.state.get_mut();
-        state.values[index] = value;
-        if !self.initialized {
-            state.stale = true;
+        let before = state.values;
+        let mut retune = false;
+        let mut result = Ok(());
+        for (index, value) in changes {
+            result = settable(index, value, initialized);
+            if result.is_err() {
+                break;
+            }
+            retune |= VARIABLES[index].causality == Causality::Parameter
+                && state.values[index].to_bits() != value.to_bits();
+            state.values[index] = value;
         }
-        Ok(())
+        if initialized && result.is_ok() {
+            result = check_inputs_fit(&state.values);
+        }
+        if initialized && retune && result.is_ok() {
+            result = params(&state.values)
+                .and_then(|p| state.physics.retune(&p, &inputs(&state.values), self.time));
+        }
+        match result {
+            Ok(()) => {
+                state.stale |= !initialized;
+                Ok(())
+            }
+            Err(e) => {
+                state.values = before;
+                Err(e)
+            }
+        }
     }
 
     /// Sets the start time (FMI SetupExperiment / EnterInitializationMode).
@@ -124,6 +158,7 @@ impl Model {
     pub fn initialize(&mut self) -> Result<(), String> {
         let state = self.state.get_mut();
         let p = params(&state.values)?;
+        check_inputs_fit(&state.values)?;
         state.physics = Physics::start(&p, &inputs(&state.values), self.time)?;
         state.write_outputs();
         state.stale = false;
@@ -203,6 +238,9 @@ impl Model {
             *v = r.f64()?;
         }
         let p = params(&values).map_err(|e| format!("state holds invalid parameters: {e}"))?;
+        if initialized {
+            check_inputs_fit(&values).map_err(|e| format!("state holds invalid inputs: {e}"))?;
+        }
         let physics = Physics::read_bytes(&p, &inputs(&values), &mut r)?;
         if r.at != body.len() {
             return Err("state has trailing bytes".into());
@@ -210,6 +248,130 @@ impl Model {
         let state = State { values, physics, stale: false };
         Ok(Model { time, initialized, state: RefCell::new(state) })
     }
+}
+
+/// Whether variable `index` may take `value`: a parameter or input, within its type and
+/// range, and (after initialisation) not a fixed parameter.
+fn settable(index: usize, value: f64, initialized: bool) -> Result<(), String> {
+    let var = VARIABLES.get(index).ok_or_else(|| format!("unknown value reference {index}"))?;
+    match (var.causality, var.variability) {
+        (Causality::Parameter, Variability::Fixed) if initialized => {
+            return Err(format!(
+                "{} is a fixed parameter: it can only be set before initialisation ends",
+                var.name
+            ));
+        }
+        (Causality::Parameter | Causality::Input, _) => {}
+        (causality, _) => return Err(format!("{} is {causality:?}: it cannot be set", var.name)),
+    }
+    var.check(value)
+}
+
+/// The rules between inputs and parameters that the table's ranges cannot express:
+/// x_ref within the stroke (the table bounds it by the longest stroke allowed).
+fn check_inputs_fit(v: &[f64; N_VARIABLES]) -> Result<(), String> {
+    let (x_ref, half) = (v[vr::X_REF], 0.5 * v[vr::CYLINDER_STROKE]);
+    if x_ref.abs() > half {
+        return Err(format!(
+            "x_ref = {x_ref} rejected: allowed range is [{}, {half}] (+-cylinder.stroke/2)",
+            -half
+        ));
+    }
+    Ok(())
+}
+
+/// Input conditions that are legal but rarely meant: the FMI layer reports each with a
+/// warning when it begins (not on every step while it lasts).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputWarning {
+    /// i_ref above the valve's rated current while it is the command.
+    CurrentAboveRating,
+    /// V_supply at 0 while a command asks for motion (the driver cannot drive the coil).
+    NoDriverSupply,
+    /// p_supply at 0 while a command asks for motion (the piston cannot move).
+    NoHydraulicSupply,
+}
+
+impl InputWarning {
+    pub const ALL: [InputWarning; 3] = [
+        InputWarning::CurrentAboveRating,
+        InputWarning::NoDriverSupply,
+        InputWarning::NoHydraulicSupply,
+    ];
+}
+
+/// A position command this close to the piston asks for no motion (m): the position loop
+/// holds the piston within 0.3 um.
+const POSITION_AT_REST: f64 = 1e-6;
+
+impl Model {
+    /// Does `warning`'s condition hold for the inputs in force (cheap, no allocation)?
+    pub fn input_warning(&self, warning: InputWarning) -> bool {
+        let v = &self.state.borrow().values;
+        match warning {
+            InputWarning::CurrentAboveRating => {
+                control_mode(v) == ControlMode::Current && v[vr::I_REF].abs() > VALVE_RATED_CURRENT
+            }
+            InputWarning::NoDriverSupply => {
+                // The ideal current driver has no supply to miss.
+                let ideal =
+                    matches!(DriverKind::from_value(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
+                v[vr::V_SUPPLY] == 0.0 && !ideal && asks_for_motion(v)
+            }
+            InputWarning::NoHydraulicSupply => v[vr::P_SUPPLY] == 0.0 && asks_for_motion(v),
+        }
+    }
+
+    /// The log line for `warning`, naming the inputs.
+    pub fn input_warning_text(&self, warning: InputWarning) -> String {
+        let v = &self.state.borrow().values;
+        let unconnected = |input: &str, unit: &str, what: &str| {
+            format!(
+                "{input} = 0 {unit} while {} asks for motion: {what} (is the {input} input \
+                 unconnected? an importer may feed 0 to an unconnected input)",
+                command_text(v)
+            )
+        };
+        match warning {
+            InputWarning::CurrentAboveRating => format!(
+                "i_ref = {} A is above the valve's rated current {VALVE_RATED_CURRENT} A: the \
+                 linear valve model is extrapolated (the command is in A: 5 mA is 0.005)",
+                v[vr::I_REF]
+            ),
+            InputWarning::NoDriverSupply => {
+                unconnected("V_supply", "V", "the driver has no supply and cannot drive the coil")
+            }
+            InputWarning::NoHydraulicSupply => unconnected(
+                "p_supply",
+                "Pa",
+                "the valve has no supply pressure and the piston cannot be driven",
+            ),
+        }
+    }
+}
+
+/// Does the command of the active control mode ask the actuator to move?
+fn asks_for_motion(v: &[f64; N_VARIABLES]) -> bool {
+    match control_mode(v) {
+        ControlMode::Current => v[vr::I_REF] != 0.0,
+        ControlMode::Flow => v[vr::Q_REF] != 0.0,
+        ControlMode::Position => (v[vr::X_REF] - v[vr::X_PISTON]).abs() > POSITION_AT_REST,
+    }
+}
+
+fn command_text(v: &[f64; N_VARIABLES]) -> String {
+    match control_mode(v) {
+        ControlMode::Current => format!("i_ref = {} A", v[vr::I_REF]),
+        ControlMode::Flow => format!("Q_ref = {} m3/s", v[vr::Q_REF]),
+        ControlMode::Position => {
+            format!("x_ref = {} m (x_piston = {} m)", v[vr::X_REF], v[vr::X_PISTON])
+        }
+    }
+}
+
+/// The control mode in the value array (checked when set, so always one of the three).
+fn control_mode(v: &[f64; N_VARIABLES]) -> ControlMode {
+    ControlMode::from_value(v[vr::CONTROL_MODE]).unwrap_or(ControlMode::Current)
 }
 
 impl State {

@@ -219,7 +219,22 @@ impl Variable {
         self.min = Some(0.0);
         self
     }
+    /// A parameter that may change during a run (Step Mode); it takes effect at the next
+    /// communication point.
+    const fn tunable(mut self) -> Self {
+        self.variability = Tunable;
+        self
+    }
 }
+
+/// The Moog 30's rated coil current (A): the valve's flow gain is specified up to it, the
+/// outer loops limit their command to it by default, and a current command beyond it is
+/// reported with a warning (logStatusWarning).
+pub const VALVE_RATED_CURRENT: f64 = 0.01;
+
+/// Longest stroke (m) of a servo cylinder this model describes (`cylinder.stroke`'s maximum,
+/// which bounds `x_ref`).
+const MAX_STROKE: f64 = 1.0;
 
 /// Declares the table and, from the same rows, one constant per variable in [`vr`]: the
 /// value reference of a variable is its row, so no reference is ever numbered by hand.
@@ -263,7 +278,13 @@ variable_table! {
         description: "Simulation time",
     },
     // Inputs
-    I_REF => input("i_ref", "A", Some("mA"), 0.0, "Coil current command (used when control_mode = current)"),
+    // Every input has a physical range; a value beyond it is refused with Error. i_ref:
+    // ten times the valve's rated current (10 mA; above it a warning): the torque motor
+    // saturates magnetically long before, and a larger command is a unit mistake (5 mA
+    // typed as 5 A), not a current this valve can carry.
+    I_REF => input("i_ref", "A", Some("mA"), 0.0, "Coil current command (used when control_mode = current); rated current 10 mA")
+        .range(Some(-10.0 * VALVE_RATED_CURRENT), Some(10.0 * VALVE_RATED_CURRENT)),
+    // Up to 1 kV: far above any coil driver's supply (the paper's is 72 V).
     V_SUPPLY => input("V_supply", "V", None, 72.0, "Driver supply: the output rails are at +V_supply and -V_supply")
         .range(Some(0.0), Some(1000.0)),
     // Outputs
@@ -285,6 +306,15 @@ variable_table! {
     X_FLAPPER => output("x_flapper", "m", Some("um"), "Armature/flapper displacement at the nozzles"),
     X_SPOOL => output("x_spool", "m", Some("mm"), "Main spool displacement"),
     Q_VALVE => output("Q_valve", "m3/s", Some("L/min"), "No-load valve flow K3*x_spool (the paper's hydraulic-amplifier load flow)"),
+    // Parameters are fixed (set before initialisation ends) unless marked `.tunable()`:
+    // tunable are what a user tunes or varies during a run (controller gains and limits,
+    // friction, load mass, leakage): settable in Step Mode, they take effect at the next
+    // communication point, from the state reached (the physics is rebuilt at the set).
+    // Fixed stay the structure (driver, control_mode, H-bridge feed-forward), the sampling
+    // clocks (they count instants from t = 0: a new rate would move the next instant), and
+    // the hardware: coil and valve constants and travel stops, cylinder geometry, end
+    // stops, fluid and circuit (a different value is a different device, and a travel or
+    // geometry change could leave the state outside the new limits).
     // Structural parameters
     DRIVER => Variable {
         name: "driver",
@@ -314,12 +344,15 @@ variable_table! {
     },
     // Driver
     DRIVER_KP => param("driver.Kp", Some("V/A"), 1.6e5, "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
-        .non_negative(),
+        .non_negative()
+        .tunable(),
     DRIVER_KI => param("driver.Ki", Some("V/(A.s)"), 5.0e7, "Op-amp PI integral gain (= G*R_s/(R_f*C_f)); default Ki/Kp = R/L cancels the coil pole")
-        .non_negative(),
+        .non_negative()
+        .tunable(),
     DRIVER_V_DROP => param("driver.V_drop", Some("V"), 0.0, "Output stage drop: the output saturates at +-(V_supply - V_drop)")
-        .non_negative(),
-    DRIVER_SLEW_RATE => param("driver.slew_rate", Some("V/s"), 2.0e7, "Op-amp output slew-rate limit (20 V/us)").positive(),
+        .non_negative()
+        .tunable(),
+    DRIVER_SLEW_RATE => param("driver.slew_rate", Some("V/s"), 2.0e7, "Op-amp output slew-rate limit (20 V/us)").positive().tunable(),
     // Coil
     COIL_L => param("coil.L", Some("H"), 3.2, "Torque-motor coil (apparent) inductance").positive(),
     COIL_R => param("coil.R", Some("Ohm"), 1000.0, "Torque-motor coil resistance").positive(),
@@ -338,9 +371,9 @@ variable_table! {
     // Industrial linear current amplifier (driver 3): a PI loop like the op-amp driver's
     // but with the slow gains of an off-the-shelf unit. L/Kp = 1.28 ms gives the My-502's
     // 5 ms (2 %) settling; Ki/Kp = R/L cancels the coil pole.
-    INDUSTRIAL_KP => param("industrial.Kp", Some("V/A"), 2500.0, "Industrial amplifier proportional gain").non_negative(),
-    INDUSTRIAL_KI => param("industrial.Ki", Some("V/(A.s)"), 781250.0, "Industrial amplifier integral gain").non_negative(),
-    INDUSTRIAL_SLEW_RATE => param("industrial.slew_rate", Some("V/s"), 1.0e6, "Industrial amplifier output slew-rate limit (1 V/us)").positive(),
+    INDUSTRIAL_KP => param("industrial.Kp", Some("V/A"), 2500.0, "Industrial amplifier proportional gain").non_negative().tunable(),
+    INDUSTRIAL_KI => param("industrial.Ki", Some("V/(A.s)"), 781250.0, "Industrial amplifier integral gain").non_negative().tunable(),
+    INDUSTRIAL_SLEW_RATE => param("industrial.slew_rate", Some("V/s"), 1.0e6, "Industrial amplifier output slew-rate limit (1 V/us)").positive().tunable(),
     // H-bridge with PWM and a digital PI current loop (driver 4).
     HBRIDGE_F_PWM => param("hbridge.f_pwm", Some("Hz"), 20000.0, "PWM switching frequency (bipolar, centre-aligned)")
         .positive()
@@ -351,8 +384,8 @@ variable_table! {
     // With feed-forward and Ki/Kp = R/L, a 5 mA step at 12 V runs at 100 % duty to ~4.2 mA
     // (the supply limits the slope, as on the paper's bench), then the loop closes with
     // L/Kp = 0.36 ms: 1.9 ms settling of the period-averaged current.
-    HBRIDGE_KP => param("hbridge.Kp", Some("V/A"), 9000.0, "Digital PI proportional gain").non_negative(),
-    HBRIDGE_KI => param("hbridge.Ki", Some("V/(A.s)"), 2812500.0, "Digital PI integral gain").non_negative(),
+    HBRIDGE_KP => param("hbridge.Kp", Some("V/A"), 9000.0, "Digital PI proportional gain").non_negative().tunable(),
+    HBRIDGE_KI => param("hbridge.Ki", Some("V/(A.s)"), 2812500.0, "Digital PI integral gain").non_negative().tunable(),
     HBRIDGE_FEEDFORWARD => Variable {
         name: "hbridge.feedforward",
         causality: Parameter,
@@ -370,11 +403,23 @@ variable_table! {
     VALVE_X_FLAPPER_MAX => param("valve.x_flapper_max", Some("m"), 0.0, "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
     VALVE_X_SPOOL_MAX => param("valve.x_spool_max", Some("m"), 0.0, "Spool travel limit, inelastic stop (0: none)").non_negative(),
     // Cylinder side: inputs and outputs.
+    // Up to 1000 bar: beyond the pressure rating of industrial servo hydraulics (the
+    // Moog 30 is rated for 3000 psi, 207 bar).
     P_SUPPLY => input("p_supply", "Pa", Some("bar"), 6.8948e6, "Hydraulic supply pressure, gauge (1000 psi: the valve's rated drop, so the no-load flow is K3*x_spool)")
         .range(Some(0.0), Some(1.0e8)),
-    F_EXT => input("F_ext", "N", None, 0.0, "External force on the rod, positive in the direction of +x (extension)"),
-    Q_REF => input("Q_ref", "m3/s", Some("L/min"), 0.0, "Valve flow command (used when control_mode = flow)"),
-    X_REF => input("x_ref", "m", Some("mm"), 0.0, "Piston position command, 0 = mid-stroke (used when control_mode = position)"),
+    // +-100 kN: 72 times the default stall force p_S*A_A (1.39 kN) and 5 times the largest
+    // stall force the ranges allow at this bore (1000 bar on 16 mm: 20 kN); a larger force
+    // crushes the oil column of any actuator this model describes.
+    F_EXT => input("F_ext", "N", None, 0.0, "External force on the rod, positive in the direction of +x (extension)")
+        .range(Some(-1.0e5), Some(1.0e5)),
+    // +-1e-3 m3/s (60 L/min): four times the valve's rated flow (2.53e-4 m3/s, 15 L/min at
+    // 10 mA), which the outer loop cannot exceed with its default limit.
+    Q_REF => input("Q_ref", "m3/s", Some("L/min"), 0.0, "Valve flow command (used when control_mode = flow)")
+        .range(Some(-1.0e-3), Some(1.0e-3)),
+    // Half the longest stroke the cylinder.stroke range allows; once the stroke is known
+    // (at initialisation) x_ref is also checked against +-cylinder.stroke/2.
+    X_REF => input("x_ref", "m", Some("mm"), 0.0, "Piston position command, 0 = mid-stroke, within +-cylinder.stroke/2 (used when control_mode = position)")
+        .range(Some(-0.5 * MAX_STROKE), Some(0.5 * MAX_STROKE)),
     Q_A => output("Q_A", "m3/s", Some("L/min"), "Actual flow into chamber A"),
     Q_B => output("Q_B", "m3/s", Some("L/min"), "Actual flow out of chamber B"),
     P_A => output("p_A", "Pa", Some("bar"), "Chamber A (piston side) pressure, gauge"),
@@ -385,19 +430,21 @@ variable_table! {
     // Cylinder, load and hydraulic fluid.
     CYLINDER_BORE => param("cylinder.bore", Some("m"), 0.016, "Piston (bore) diameter").positive(),
     CYLINDER_ROD => param("cylinder.rod", Some("m"), 0.010, "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative(),
-    CYLINDER_STROKE => param("cylinder.stroke", Some("m"), 0.080, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2").positive(),
-    CYLINDER_MASS => param("cylinder.mass", Some("kg"), 5.0, "Moving mass of piston, rod and load").positive(),
+    CYLINDER_STROKE => param("cylinder.stroke", Some("m"), 0.080, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2")
+        .positive()
+        .range(Some(0.0), Some(MAX_STROKE)),
+    CYLINDER_MASS => param("cylinder.mass", Some("kg"), 5.0, "Moving mass of piston, rod and load").positive().tunable(),
     CYLINDER_BETA => param("cylinder.beta", Some("Pa"), 1.0e9, "Effective bulk modulus of oil, hoses and walls").positive(),
     CYLINDER_V_DEAD => param("cylinder.V_dead", Some("m3"), 2.0e-6, "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
-    CYLINDER_B_VISCOUS => param("cylinder.b_viscous", Some("N.s/m"), 200.0, "Viscous friction coefficient").non_negative(),
-    CYLINDER_F_COULOMB => param("cylinder.F_coulomb", Some("N"), 20.0, "Coulomb friction force").non_negative(),
-    CYLINDER_F_STATIC => param("cylinder.F_static", Some("N"), 30.0, "Breakaway (static) friction force: peak of the Stribeck curve").non_negative(),
-    CYLINDER_V_STRIBECK => param("cylinder.v_stribeck", Some("m/s"), 0.01, "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive(),
-    CYLINDER_V_FRICTION_SMOOTH => param("cylinder.v_friction_smooth", Some("m/s"), 1.0e-4, "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive(),
+    CYLINDER_B_VISCOUS => param("cylinder.b_viscous", Some("N.s/m"), 200.0, "Viscous friction coefficient").non_negative().tunable(),
+    CYLINDER_F_COULOMB => param("cylinder.F_coulomb", Some("N"), 20.0, "Coulomb friction force").non_negative().tunable(),
+    CYLINDER_F_STATIC => param("cylinder.F_static", Some("N"), 30.0, "Breakaway (static) friction force: peak of the Stribeck curve").non_negative().tunable(),
+    CYLINDER_V_STRIBECK => param("cylinder.v_stribeck", Some("m/s"), 0.01, "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive().tunable(),
+    CYLINDER_V_FRICTION_SMOOTH => param("cylinder.v_friction_smooth", Some("m/s"), 1.0e-4, "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive().tunable(),
     CYLINDER_K_ENDSTOP => param("cylinder.k_endstop", Some("N/m"), 1.0e8, "End-stop contact stiffness beyond +-stroke/2").positive(),
     CYLINDER_C_ENDSTOP => param("cylinder.c_endstop", Some("N.s/m"), 1.0e4, "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative(),
-    CYLINDER_C_LEAK => param("cylinder.C_leak", Some("m3/(s.Pa)"), 0.0, "Internal leakage coefficient across the piston, A to B").non_negative(),
-    CYLINDER_C_LEAK_EXTERNAL => param("cylinder.C_leak_external", Some("m3/(s.Pa)"), 0.0, "External leakage coefficient from each chamber to the drain at p_tank").non_negative(),
+    CYLINDER_C_LEAK => param("cylinder.C_leak", Some("m3/(s.Pa)"), 0.0, "Internal leakage coefficient across the piston, A to B").non_negative().tunable(),
+    CYLINDER_C_LEAK_EXTERNAL => param("cylinder.C_leak_external", Some("m3/(s.Pa)"), 0.0, "External leakage coefficient from each chamber to the drain at p_tank").non_negative().tunable(),
     VALVE_DP_RATED => param("valve.dp_rated", Some("Pa"), 6.8948e6, "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").positive(),
     VALVE_DP_LAMINAR => param("valve.dp_laminar", Some("Pa"), 1.0e5, "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive(),
     HYDRAULICS_P_TANK => param("hydraulics.p_tank", Some("Pa"), 0.0, "Tank (return) pressure, gauge").range(Some(-1.01325e5), None),
@@ -407,22 +454,22 @@ variable_table! {
     LOOP_F_SAMPLE => param("loop.f_sample", Some("Hz"), 20000.0, "Sampling rate of the outer flow/position PID (the command is held between samples)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
-    LOOP_I_MAX => param("loop.i_max", Some("A"), 0.01, "Limit of the current command from the outer loops (rated current)").positive(),
+    LOOP_I_MAX => param("loop.i_max", Some("A"), VALVE_RATED_CURRENT, "Limit of the current command from the outer loops (rated current)").positive().tunable(),
     // Flow defaults, a gentle P on top of the exact feed-forward like the paper's untuned
     // loop: a 2e-4 m3/s step settles in 3.37 ms at 72 V and 6.08 ms at 10 V (180 %; paper
     // 3.3 ms, 6 ms, 181 %). With the feed-forward exact, P alone leaves no steady-state
     // error; an integral adds a slow tail (the area it collects in the transient) and winds
     // up against the 10 V supply limit, where the coil current can only rise with L/R.
-    FLOW_KP => param("flow.Kp", Some("A.s/m3"), 2.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)"),
-    FLOW_KI => param("flow.Ki", Some("A/m3"), 0.0, "Flow PID integral gain"),
-    FLOW_KD => param("flow.Kd", Some("A.s2/m3"), 0.0, "Flow PID derivative gain"),
+    FLOW_KP => param("flow.Kp", Some("A.s/m3"), 2.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)").tunable(),
+    FLOW_KI => param("flow.Ki", Some("A/m3"), 0.0, "Flow PID integral gain").tunable(),
+    FLOW_KD => param("flow.Kd", Some("A.s2/m3"), 0.0, "Flow PID derivative gain").tunable(),
     // Position defaults: P only (1 mA per mm). The valve-controlled cylinder integrates flow,
     // and a critically centred valve holds a constant load with zero flow only at null spool,
     // so P alone has zero steady-state error; Ki is for leakage or a valve offset. Derivative
     // action excites the hydraulic resonance at these gains.
-    POSITION_KP => param("position.Kp", Some("A/m"), 1.0, "Position PID proportional gain (on x_ref - x_piston)"),
-    POSITION_KI => param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain"),
-    POSITION_KD => param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain"),
+    POSITION_KP => param("position.Kp", Some("A/m"), 1.0, "Position PID proportional gain (on x_ref - x_piston)").tunable(),
+    POSITION_KI => param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain").tunable(),
+    POSITION_KD => param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain").tunable(),
     // Relief valves of the cylinder (appended: references never move). One per chamber, to
     // tank; 80 bar is 16 % above the 1000 psi supply, so they stay shut in normal operation
     // (docs/model.md) and cap what braking a fast piston with the valve does to the chambers.
@@ -512,6 +559,24 @@ mod tests {
         let msg = l.check(-1.0).unwrap_err();
         assert!(msg.contains("coil.L") && msg.contains("(0, +inf)"), "{msg}");
         assert!(l.check(f64::NAN).unwrap_err().contains("finite"));
+    }
+
+    #[test]
+    fn every_input_has_a_range_and_only_parameters_are_tunable() {
+        for v in VARIABLES.iter() {
+            if v.causality == Input {
+                assert!(v.min.is_some() && v.max.is_some(), "{} has no range", v.name);
+            }
+            if v.variability == Tunable {
+                assert_eq!(v.causality, Parameter, "{}", v.name);
+            }
+        }
+        let i_ref = &VARIABLES[vr::I_REF];
+        assert!(i_ref.check(5.0).unwrap_err().contains("[-0.1, 0.1]"), "5 mA typed in A");
+        assert_eq!(VARIABLES[vr::LOOP_I_MAX].start, VALVE_RATED_CURRENT);
+        for structural in [vr::DRIVER, vr::CONTROL_MODE, vr::CYLINDER_STROKE, vr::LOOP_F_SAMPLE] {
+            assert_eq!(VARIABLES[structural].variability, Fixed, "{}", VARIABLES[structural].name);
+        }
     }
 
     #[test]

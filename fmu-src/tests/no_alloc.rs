@@ -1,26 +1,61 @@
 //! doStep must not touch the heap (real-time use): count allocations around Model::do_step,
-//! including the steps where the driver hits and leaves its rail and propagators are built.
+//! including the steps where the driver hits and leaves its rail, propagators are built,
+//! and the first steps after tunable parameters changed (their rebuild happens at the set).
+//!
+//! The counter is per thread: the test harness runs tests (and its own bookkeeping) on
+//! other threads, whose allocations must not count against the stepping thread.
 
 use ehsv_actuator::model::Model;
 use ehsv_actuator::variables::vr;
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::cell::Cell;
 
 struct Counting;
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        System.alloc(layout)
+        // `try_with`: a thread being torn down has no counter left; it is not stepping.
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
+        unsafe { System.dealloc(ptr, layout) }
     }
 }
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
+
+fn allocations() -> usize {
+    ALLOCATIONS.with(|n| n.get())
+}
+
+/// Allocations made by this thread while `f` runs.
+fn allocations_in(f: impl FnOnce()) -> usize {
+    let before = allocations();
+    f();
+    allocations() - before
+}
+
+#[test]
+fn the_counter_counts_this_thread_only() {
+    assert_eq!(allocations_in(|| drop(std::hint::black_box(vec![1u8; 16]))), 1);
+    let other = allocations_in(|| {
+        std::thread::spawn(|| {
+            for k in 0..1000 {
+                drop(std::hint::black_box(vec![0u8; 16 + k]));
+            }
+        })
+        .join()
+        .unwrap()
+    });
+    // Spawning allocates here (thread handle, name); the other thread's 1000 do not.
+    assert!(other < 100, "{other} allocations counted for spawning one thread");
+}
 
 #[test]
 fn do_step_does_not_allocate() {
@@ -28,14 +63,35 @@ fn do_step_does_not_allocate() {
         let mut m = Model::new();
         m.set(vr::DRIVER, driver).unwrap();
         m.initialize().unwrap();
-        let before = ALLOCATIONS.load(Ordering::SeqCst);
         for (k, i_ref) in [5e-3, -10e-3, 0.0].into_iter().enumerate() {
             m.set(vr::I_REF, i_ref).unwrap();
-            for _ in 0..30 {
-                m.do_step(m.time(), 1e-4 * (1 + k) as f64 / 3.0).unwrap();
-            }
+            let n = allocations_in(|| {
+                for _ in 0..30 {
+                    m.do_step(m.time(), 1e-4 * (1 + k) as f64 / 3.0).unwrap();
+                }
+            });
+            assert_eq!(n, 0, "driver {driver}, i_ref {i_ref}: doStep allocated");
         }
-        let after = ALLOCATIONS.load(Ordering::SeqCst);
-        assert_eq!(after - before, 0, "driver {driver}: doStep allocated");
+    }
+}
+
+#[test]
+fn steps_after_a_tunable_change_do_not_allocate() {
+    for (driver, gain) in [(2.0, vr::DRIVER_KP), (3.0, vr::INDUSTRIAL_KP), (4.0, vr::HBRIDGE_KP)] {
+        let mut m = Model::new();
+        m.set(vr::DRIVER, driver).unwrap();
+        m.initialize().unwrap();
+        m.set(vr::I_REF, 5e-3).unwrap();
+        for scale in [0.5, 2.0] {
+            let value = m.get(gain).unwrap() * scale;
+            m.set(gain, value).unwrap();
+            m.set(vr::CYLINDER_MASS, 5.0 * scale).unwrap();
+            let n = allocations_in(|| {
+                for _ in 0..30 {
+                    m.do_step(m.time(), 1e-4).unwrap();
+                }
+            });
+            assert_eq!(n, 0, "driver {driver}: doStep after a tunable change allocated");
+        }
     }
 }

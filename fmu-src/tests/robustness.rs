@@ -32,6 +32,12 @@ both!(
     state_restores_the_fmi_mode_and_stop_time,
     a_failed_step_leaves_only_reset_restore_and_getters,
     a_refused_call_leaves_the_instance_in_its_state,
+    inputs_beyond_their_physical_range_are_refused,
+    input_warnings_come_once_when_the_condition_begins,
+    a_tunable_parameter_takes_effect_at_the_next_step,
+    a_retune_keeps_the_state_exactly,
+    tunable_sets_are_all_or_nothing_and_fixed_ones_refused,
+    a_retuned_state_continues_identically_from_its_bytes,
 );
 
 const H: f64 = 1e-4;
@@ -649,7 +655,9 @@ fn scenario<F: Api>(seed: usize) -> Vec<Vec<u64>> {
     (0..800)
         .map(|k| {
             assert_eq!(f.set(vr::I_REF, i_ref_at(k + 7 * seed) * (1.0 + seed as f64 / 8.0)), OK);
-            assert_eq!(f.step(k as f64 * 2.5e-5, 2.5e-5), OK);
+            // Above 10 mA a step warns (the rating); the status is part of the comparison.
+            let status = f.step(k as f64 * 2.5e-5, 2.5e-5);
+            assert!(matches!(status, OK | Status::Warning), "{status:?}");
             f.snapshot()
         })
         .collect()
@@ -788,4 +796,263 @@ fn a_refused_call_leaves_the_instance_in_its_state<F: Api>() {
 fn hbridge_pid() -> i64 {
     let drivers = ENUMERATIONS.iter().find(|e| e.name == "DriverType").expect("DriverType");
     drivers.items.iter().find(|i| i.1 == "hbridge_pid").expect("hbridge_pid").0
+}
+
+// ---------------------------------------------------------------- input ranges and warnings
+
+/// Every input has a physical range (the XML's min/max): beyond it the set is an Error with
+/// a log line naming the variable, the value and the range, and nothing changes. x_ref is
+/// also held within the stroke once it is known.
+fn inputs_beyond_their_physical_range_are_refused<F: Api>() {
+    let f = F::initialized("ranges");
+    let cases: &[(usize, f64, &str)] = &[
+        (vr::I_REF, 5.0, "[-0.1, 0.1]"), // 5 mA typed in A
+        (vr::I_REF, -0.2, "[-0.1, 0.1]"),
+        (vr::Q_REF, 2e-3, "[-0.001, 0.001]"),
+        (vr::X_REF, 0.6, "[-0.5, 0.5]"),
+        (vr::X_REF, 0.05, "[-0.04, 0.04] (+-cylinder.stroke/2)"),
+        (vr::F_EXT, -1e12, "[-100000, 100000]"),
+        (vr::V_SUPPLY, 1500.0, "[0, 1000]"),
+        (vr::P_SUPPLY, -1.0, "[0, 100000000]"),
+    ];
+    for &(input, bad, range) in cases {
+        let name = VARIABLES[input].name;
+        let before = f.get(input).1;
+        assert_eq!(f.set(input, bad), ERROR, "{name} = {bad}");
+        assert_error_logged(&f, name, &[name, &format!("{bad}"), range]);
+        assert_eq!(f.get(input).1, before, "{name} unchanged");
+    }
+    // The edges are allowed and the instance steps on.
+    for (input, edge) in [(vr::I_REF, -0.1), (vr::F_EXT, 1e5), (vr::X_REF, 0.04), (vr::Q_REF, 1e-3)]
+    {
+        assert_eq!(f.set(input, edge), OK, "{}", f.log().dump());
+    }
+    assert_eq!(f.step(0.0, H), Status::Warning, "-100 mA is above the rating: a warning");
+
+    // Before initialisation x_ref is only held to the table's range; initialisation
+    // checks it against the stroke, and a longer stroke admits it.
+    let g = F::create("x_ref at init");
+    assert_eq!(g.set(vr::X_REF, 0.05), OK);
+    assert_eq!(g.enter_init(None), OK);
+    assert_eq!(g.exit_init(), ERROR);
+    assert_error_logged(&g, "x_ref at init", &["x_ref = 0.05", "cylinder.stroke/2"]);
+    assert_eq!(g.set(vr::CYLINDER_STROKE, 0.2), OK);
+    assert_eq!(g.exit_init(), OK, "{}", g.log().dump());
+    assert_eq!(g.get(vr::X_REF).1, 0.05);
+}
+
+/// Lines of category logStatusWarning with status Warning.
+fn warnings<F: Api>(f: &F) -> Vec<String> {
+    f.log()
+        .lines()
+        .into_iter()
+        .filter(|l| l.category == "logStatusWarning" && l.status == Status::Warning as i32)
+        .map(|l| l.message)
+        .collect()
+}
+
+/// A current command above the valve's rating and a supply at 0 while a command asks for
+/// motion (an unconnected input fed 0 by the importer) each give doStep status Warning and
+/// one logStatusWarning line when the condition begins, none while it lasts, and again
+/// when it begins anew. Legal inputs: the steps go on.
+fn input_warnings_come_once_when_the_condition_begins<F: Api>() {
+    let f = F::initialized("warnings");
+    assert_eq!(f.set_logging(true, &["logStatusWarning"]), OK);
+    let mut k = 0;
+    let mut step = |f: &F| {
+        let s = f.step(k as f64 * H, H);
+        k += 1;
+        s
+    };
+    // i_ref above 10 mA: once, then quiet; back within and above again: once more.
+    assert_eq!(f.set(vr::I_REF, 0.02), OK);
+    assert_eq!(step(&f), Status::Warning);
+    for _ in 0..5 {
+        assert_eq!(step(&f), OK);
+    }
+    let lines = warnings(&f);
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("i_ref = 0.02 A") && lines[0].contains("rated current 0.01 A"));
+    assert_eq!(f.set(vr::I_REF, 0.01), OK, "the rating itself is fine");
+    assert_eq!(step(&f), OK);
+    assert_eq!(f.set(vr::I_REF, -0.03), OK);
+    assert_eq!(step(&f), Status::Warning);
+    assert_eq!(warnings(&f).len(), 2);
+
+    // V_supply at 0 while i_ref asks for motion: named, "unconnected".
+    assert_eq!(f.set(vr::I_REF, 0.005), OK);
+    assert_eq!(f.set(vr::V_SUPPLY, 0.0), OK);
+    assert_eq!(step(&f), Status::Warning);
+    assert_eq!(step(&f), OK);
+    let last = warnings(&f).pop().unwrap();
+    assert!(last.contains("V_supply = 0 V") && last.contains("i_ref = 0.005 A"), "{last}");
+    assert!(last.contains("unconnected"), "{last}");
+    // With no command there is nothing to warn about; a new command warns again.
+    assert_eq!(f.set(vr::I_REF, 0.0), OK);
+    assert_eq!(step(&f), OK);
+    assert_eq!(f.set(vr::I_REF, 0.001), OK);
+    assert_eq!(step(&f), Status::Warning);
+    assert_eq!(warnings(&f).len(), 4);
+
+    // p_supply at 0 as well: its own warning.
+    assert_eq!(f.set(vr::V_SUPPLY, 72.0), OK);
+    assert_eq!(f.set(vr::P_SUPPLY, 0.0), OK);
+    assert_eq!(step(&f), Status::Warning);
+    let last = warnings(&f).pop().unwrap();
+    assert!(last.contains("p_supply = 0 Pa") && last.contains("unconnected"), "{last}");
+    assert_eq!(warnings(&f).len(), 5);
+
+    // Logging off: the status still says Warning, nothing is logged.
+    assert_eq!(f.set_logging(false, &[]), OK);
+    assert_eq!(f.set(vr::I_REF, 0.05), OK);
+    assert_eq!(step(&f), Status::Warning);
+    assert_eq!(warnings(&f).len(), 5);
+
+    // The ideal current driver has no supply voltage to miss; the flow loop's command is Q_ref.
+    let g = F::create("ideal, flow");
+    assert_eq!(g.set_enum(vr::DRIVER, 0), OK);
+    assert_eq!(g.set_enum(vr::CONTROL_MODE, 1), OK);
+    assert_eq!(g.set(vr::V_SUPPLY, 0.0), OK);
+    assert_eq!(g.set(vr::I_REF, 0.05), OK, "unused in flow mode: no warning");
+    assert_eq!(g.init(None), OK);
+    assert_eq!(g.set_logging(true, &["logStatusWarning"]), OK);
+    assert_eq!(g.step(0.0, H), OK);
+    assert_eq!(g.set(vr::P_SUPPLY, 0.0), OK);
+    assert_eq!(g.step(H, H), OK, "Q_ref = 0 asks for no motion");
+    assert_eq!(g.set(vr::Q_REF, 1e-4), OK);
+    assert_eq!(g.step(2.0 * H, H), Status::Warning);
+    let lines = warnings(&g);
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("p_supply") && lines[0].contains("Q_ref = 0.0001"), "{lines:?}");
+}
+
+// ---------------------------------------------------------------- tunable parameters
+
+/// The flow loop at Q_ref 2e-4 m3/s from rest, 10 ms.
+fn flow_loop<F: Api>(name: &str) -> F {
+    let f = F::create(name);
+    assert_eq!(f.set_enum(vr::CONTROL_MODE, 1), OK);
+    assert_eq!(f.init(None), OK);
+    assert_eq!(f.set(vr::Q_REF, 2e-4), OK);
+    for k in 0..100 {
+        assert_eq!(f.step(k as f64 * H, H), OK, "{}", f.log().dump());
+    }
+    f
+}
+
+/// Valve no-load flow per coil current, K3 K1 / Kw (m3/s per A).
+const STATIC_FLOW_GAIN: f64 = 0.664515 * 2.82462 / 74.2853;
+
+/// loop.i_max lowered in Step Mode: the outputs stay those of the last communication point
+/// until the next doStep, which already runs under the new limit; the flow then settles at
+/// the limited current's flow K3 K1/Kw i_max (the feed-forward alone would ask for 7.9 mA).
+fn a_tunable_parameter_takes_effect_at_the_next_step<F: Api>() {
+    let f = flow_loop::<F>("tuned");
+    let twin = flow_loop::<F>("twin");
+    assert_eq!(f.snapshot(), twin.snapshot());
+    let q_before = f.get(vr::Q_VALVE).1;
+    assert!((q_before - 2e-4).abs() < 1e-6, "{q_before}");
+    assert_eq!(f.set(vr::LOOP_I_MAX, 0.002), OK, "{}", f.log().dump());
+    let mut tuned = f.snapshot();
+    tuned[vr::LOOP_I_MAX] = twin.snapshot()[vr::LOOP_I_MAX];
+    assert_eq!(tuned, twin.snapshot(), "no effect before the next step");
+    let t = 100.0 * H;
+    assert_eq!(f.step(t, H), OK);
+    assert_eq!(twin.step(t, H), OK);
+    assert!(f.get(vr::I_COIL).1 < twin.get(vr::I_COIL).1 - 1e-4, "the limit acts in the step");
+    for k in 101..300 {
+        assert_eq!(f.step(k as f64 * H, H), OK);
+    }
+    let (q, i) = (f.get(vr::Q_VALVE).1, f.get(vr::I_COIL).1);
+    println!("loop.i_max 2 mA: i_coil {i:e} A, Q_valve {q:e} m3/s");
+    // 20 ms after the change the op-amp's post-rail creep (L/R = 3.2 ms) is down to
+    // 2.6e-5 of the current, and the valve follows it with its own lag: 1e-4 holds both.
+    assert!((i - 0.002).abs() < 1e-4 * 0.002, "i_coil {i}");
+    assert!((q - STATIC_FLOW_GAIN * i).abs() < 1e-4 * q, "Q_valve {q} vs K3 K1/Kw i_coil");
+    // Raised back: the loop returns to its reference.
+    assert_eq!(f.set(vr::LOOP_I_MAX, 0.01), OK);
+    for k in 300..500 {
+        assert_eq!(f.step(k as f64 * H, H), OK);
+    }
+    assert!((f.get(vr::Q_VALVE).1 - 2e-4).abs() < 1e-3 * 2e-4, "{}", f.get(vr::Q_VALVE).1);
+}
+
+/// A tunable that the run does not use (the position gain in flow mode) changed mid-run:
+/// the physics is rebuilt from the state reached, and the run goes on bit for bit as if
+/// nothing happened (the rebuild keeps every state variable and the driver mode).
+fn a_retune_keeps_the_state_exactly<F: Api>() {
+    let f = F::initialized("retuned");
+    let twin = F::initialized("twin");
+    let (a, b) = (drive(&f, 0, 30), drive(&twin, 0, 30));
+    assert_eq!(a, b);
+    assert_eq!(f.set(vr::POSITION_KP, 3.0), OK);
+    assert_eq!(f.set(vr::CYLINDER_C_LEAK, 0.0), OK, "the same value again: nothing to do");
+    let mut a = drive(&f, 30, 60);
+    for row in a.iter_mut() {
+        row[vr::POSITION_KP] = 1.0f64.to_bits();
+    }
+    assert_eq!(a, drive(&twin, 30, 60));
+}
+
+/// Fixed parameters are refused in Step Mode with a message that says why and when they
+/// can be set; a call setting several variables is all or nothing (an invalid value or a
+/// fixed parameter among them leaves the tunable ones unchanged); a tunable value the
+/// model cannot represent is refused at the set, not at the next step.
+fn tunable_sets_are_all_or_nothing_and_fixed_ones_refused<F: Api + SetMany>() {
+    let f = F::initialized("rules");
+    assert_eq!(f.set_enum(vr::DRIVER, 3), ERROR);
+    assert_error_logged(&f, "driver", &["driver", "fixed parameter", "before initialisation"]);
+    assert_eq!(f.set(vr::CYLINDER_STROKE, 0.1), ERROR);
+    assert_error_logged(&f, "stroke", &["cylinder.stroke", "fixed parameter"]);
+    for tunable in [vr::DRIVER_KP, vr::FLOW_KI, vr::CYLINDER_MASS, vr::CYLINDER_F_COULOMB] {
+        let v = f.get(tunable).1;
+        assert_eq!(f.set(tunable, v * 0.5 + 1.0), OK, "{}", VARIABLES[tunable].name);
+        assert_eq!(f.set(tunable, v), OK);
+    }
+    let before = f.snapshot();
+    let kp = vr::DRIVER_KP as u32;
+    for (second, value) in [(vr::I_REF, 5.0), (vr::COIL_L, 3.0), (vr::CYLINDER_MASS, -1.0)] {
+        assert_eq!(f.set_many(&[kp, second as u32], &[1e4, value]), ERROR);
+        assert_eq!(f.snapshot(), before, "{}: nothing applied", VARIABLES[second].name);
+    }
+    assert_eq!(f.set(vr::DRIVER_KP, 1e308), ERROR, "{}", f.log().dump());
+    assert_error_logged(&f, "huge gain", &["too stiff"]);
+    assert_eq!(f.snapshot(), before);
+    assert_eq!(f.step(0.0, H), OK);
+    // After Terminate nothing is settable.
+    assert_eq!(f.terminate(), OK);
+    assert_eq!(f.set(vr::DRIVER_KP, 1e4), ERROR);
+    assert_error_logged(&f, "terminated", &["not allowed in state Terminated"]);
+}
+
+/// The FMU state of a retuned instance holds the new value: deserialised in a fresh
+/// instance it continues bit for bit.
+fn a_retuned_state_continues_identically_from_its_bytes<F: Api>() {
+    let f = F::initialized("retuned origin");
+    drive(&f, 0, 20);
+    assert_eq!(f.set(vr::DRIVER_KP, 4e4), OK);
+    assert_eq!(f.set(vr::CYLINDER_B_VISCOUS, 800.0), OK);
+    let bytes = f.save();
+    let reference = drive(&f, 20, 60);
+    let g = F::initialized("restored");
+    assert_eq!(g.restore(&bytes), OK, "{}", g.log().dump());
+    assert_eq!(g.get(vr::DRIVER_KP).1, 4e4);
+    assert_eq!(drive(&g, 20, 60), reference);
+}
+
+/// One setter call over several Real / Float64 variables.
+trait SetMany {
+    fn set_many(&self, refs: &[u32], values: &[f64]) -> Status;
+}
+
+impl SetMany for Fmu2 {
+    fn set_many(&self, refs: &[u32], values: &[f64]) -> Status {
+        unsafe { fmi2SetReal(self.c, refs.as_ptr(), refs.len(), values.as_ptr()) }
+    }
+}
+
+impl SetMany for Fmu3 {
+    fn set_many(&self, refs: &[u32], values: &[f64]) -> Status {
+        unsafe { fmi3SetFloat64(self.i, refs.as_ptr(), refs.len(), values.as_ptr(), values.len()) }
+    }
 }
