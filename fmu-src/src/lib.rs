@@ -7,13 +7,12 @@
 //! * [`physics`]: plain-Rust model of driver, coil, Moog 30 valve, cylinder and load, with
 //!   its exact piecewise-linear and Rosenbrock integrators. No FFI, no `unsafe`.
 //! * `fmi2`, `fmi3`: the thin C API (the only `unsafe` code), generated alike over
-//!   [`fmi_common`]; [`fmi_state_machine`]: the call-sequence table and the Error rules.
+//!   [`fmi_common`], which holds the call-sequence table and the Error rules
+//!   ([`fmi_common::state_machine`]).
 
 pub mod fmi2;
 pub mod fmi3;
 pub mod fmi_common;
-mod fmi_macros;
-pub mod fmi_state_machine;
 pub mod model;
 pub mod physics;
 pub mod units;

@@ -1,7 +1,6 @@
 //! Macros that generate the exported C functions of both FMI versions alike: each
 //! function on an instance is its C signature, its row of the call-sequence table
-//! ([`crate::fmi_state_machine::Call`]) and a body run inside
-//! [`crate::fmi_common::with_instance`].
+//! ([`super::Call`]) and a body run inside [`super::with_instance`].
 
 /// Exported functions on an instance. The first argument is the instance; `$call` names
 /// the row of the call-sequence table; `$body` runs with the instance as `$inst` and
@@ -27,7 +26,7 @@ macro_rules! fmi_functions {
                     $instance,
                     V,
                     stringify!($name),
-                    $crate::fmi_state_machine::Call::$call,
+                    $crate::fmi_common::Call::$call,
                     |$inst| $body,
                 )
             }
@@ -35,14 +34,14 @@ macro_rules! fmi_functions {
     )*};
 }
 
-/// Exported functions of capabilities this FMU does not have: Error + "fmiX is not
-/// supported by EhsvActuator<why>" (allowed in every state; no argument is read).
+/// Exported functions of capabilities this FMU does not have: Error +
+/// `"fmiX is not supported by EhsvActuator<why>"` (allowed in every state; no argument is read).
 macro_rules! not_supported {
     ($(
         $(#[$doc:meta])*
         fn $name:ident($instance:ident: $ity:ty $(, $arg:ident: $aty:ty)* $(,)?) $why:literal;
     )*) => {
-        $crate::fmi_macros::fmi_functions! {$(
+        $crate::fmi_common::fmi_functions! {$(
             $(#[$doc])*
             fn $name($instance: $ity $(, $arg: $aty)*) Unsupported => |inst| {
                 $(let _ = $arg;)*
@@ -59,7 +58,7 @@ macro_rules! fmu_state_functions {
         instance: $ity:ty, state: $sty:ty, byte: $bty:ty,
         $get:ident, $set:ident, $free:ident, $size:ident, $serialize:ident, $deserialize:ident
     ) => {
-        $crate::fmi_macros::fmi_functions! {
+        $crate::fmi_common::fmi_functions! {
             /// Stores the instance's state (model, FMI mode, stop time) into `*state`: a new
             /// FMU state for NULL, else the given one is overwritten.
             fn $get(instance: $ity,

@@ -1,0 +1,84 @@
+//! The importer's pointer arguments, checked before they are read: C strings, arrays of
+//! the announced length, out-parameters. NULL, misalignment and impossible sizes are
+//! refused with an Error naming the argument; the rest is the importer's part of the
+//! FMI contract.
+
+use std::ffi::{c_char, CStr};
+
+use super::instance::Instance;
+use super::logging::Status;
+
+/// Reads a C string argument; `None` for NULL.
+///
+/// # Safety
+/// `p` is NULL or a NUL-terminated string (FMI contract).
+pub(crate) unsafe fn opt_str<'a>(p: *const c_char) -> Option<&'a CStr> {
+    // SAFETY: see function contract.
+    (!p.is_null()).then(|| unsafe { CStr::from_ptr(p) })
+}
+
+impl Instance {
+    /// `n` elements at `ptr` as a slice; NULL with `n > 0`, misalignment or an
+    /// impossible size → Error naming the argument.
+    ///
+    /// # Safety
+    /// A non-NULL `ptr` points to `n` initialised `T` that stay valid and unaliased by
+    /// writes for the call (FMI contract for array arguments).
+    pub(crate) unsafe fn slice<'a, T>(
+        &self,
+        what: &str,
+        ptr: *const T,
+        n: usize,
+    ) -> Result<&'a [T], Status> {
+        if n == 0 {
+            return Ok(&[]);
+        }
+        self.check_array(what, ptr, n)?;
+        // SAFETY: non-NULL, aligned, size fits isize (checked), validity per contract.
+        Ok(unsafe { std::slice::from_raw_parts(ptr, n) })
+    }
+
+    /// Mutable variant of [`Instance::slice`] for output arrays.
+    ///
+    /// # Safety
+    /// A non-NULL `ptr` points to `n` writable `T` not otherwise accessed during the call.
+    pub(crate) unsafe fn slice_mut<'a, T>(
+        &self,
+        what: &str,
+        ptr: *mut T,
+        n: usize,
+    ) -> Result<&'a mut [T], Status> {
+        if n == 0 {
+            return Ok(&mut []);
+        }
+        self.check_array(what, ptr, n)?;
+        // SAFETY: as in `slice`, plus exclusive access per contract. Elements are plain
+        // numbers, so writing over possibly uninitialised memory is fine.
+        Ok(unsafe { std::slice::from_raw_parts_mut(ptr, n) })
+    }
+
+    fn check_array<T>(&self, what: &str, ptr: *const T, n: usize) -> Result<(), Status> {
+        if ptr.is_null() {
+            return self.error(&format!("{what} is NULL but {n} elements were announced"));
+        }
+        if !ptr.is_aligned() {
+            return self.error(&format!("{what} is not aligned for its element type"));
+        }
+        if n.checked_mul(std::mem::size_of::<T>()).is_none_or(|b| b > isize::MAX as usize) {
+            return self.error(&format!("{what}: {n} elements is not a possible array size"));
+        }
+        Ok(())
+    }
+
+    /// Out-parameter pointer check.
+    ///
+    /// # Safety
+    /// A non-NULL `ptr` points to a writable `T`.
+    pub(crate) unsafe fn out<'a, T>(&self, what: &str, ptr: *mut T) -> Result<&'a mut T, Status> {
+        if ptr.is_null() || !ptr.is_aligned() {
+            return self.error(&format!("{what} is NULL or misaligned"));
+        }
+        // SAFETY: non-NULL, aligned, writable per contract; T here is a plain number/pointer.
+        Ok(unsafe { &mut *ptr })
+    }
+}

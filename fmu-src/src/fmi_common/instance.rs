@@ -1,0 +1,267 @@
+//! One FMU instance behind the `fmi2Component` / `fmi3Instance` pointer: its creation,
+//! the frame every exported function on it runs in (instance and FMI version check, call
+//! sequence, panics turned into the Error state) and its release.
+
+use std::collections::HashMap;
+use std::ffi::{c_char, c_void, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+use super::arguments::opt_str;
+use super::fmu_state::SavedState;
+use super::logging::{Logger, Status, LOG_CATEGORIES, LOG_ERROR, N_CATEGORIES};
+use super::state_machine::{Call, State, Version};
+use crate::model::{InputWarning, Model};
+
+const INSTANCE_MAGIC: u64 = 0x4548_5356_494e_5354; // "EHSVINST"
+
+/// One FMU instance, behind the `fmi2Component` / `fmi3Instance` pointer.
+#[repr(C)]
+pub(crate) struct Instance {
+    /// First field, so a foreign or freed pointer is likely to be recognised.
+    magic: u64,
+    pub(super) version: Version,
+    pub(super) name: CString,
+    pub(super) logger: Logger,
+    pub(super) categories: [bool; N_CATEGORIES],
+    /// The exported function being executed (prefix of error messages).
+    pub(super) func: &'static str,
+    pub(crate) model: Model,
+    pub(crate) state: State,
+    pub(crate) stop_time: Option<f64>,
+    /// The FMU states this instance handed out and the importer has not freed, by the
+    /// address the importer holds: FreeInstance frees what is left, and a pointer that is
+    /// not in here (freed, foreign, garbage) is refused without being read.
+    pub(super) fmu_states: HashMap<usize, Box<SavedState>>,
+    /// Which [`InputWarning`]s held at the last doStep: each is reported when it begins.
+    pub(super) warned: [bool; InputWarning::ALL.len()],
+}
+
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "panic".to_string()
+    }
+}
+
+/// Runs `f`, turning a panic into `on_panic(message)`: no panic crosses the C boundary.
+pub(crate) fn guarded<R>(f: impl FnOnce() -> R, on_panic: impl FnOnce(String) -> R) -> R {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => on_panic(panic_text(&*payload)),
+    }
+}
+
+/// Creates an instance after checking name and token; on refusal logs through `logger`
+/// (errors are always logged) and returns NULL.
+///
+/// # Safety
+/// `name` and `token` are NULL or NUL-terminated strings.
+pub(crate) unsafe fn instantiate(
+    version: Version,
+    func: &'static str,
+    name: *const c_char,
+    token: *const c_char,
+    logger: Logger,
+    logging_on: bool,
+    refusal: Option<String>,
+) -> *mut c_void {
+    // SAFETY: forwarded contract.
+    let (name, token) = unsafe { (opt_str(name), opt_str(token)) };
+    let shown = name.map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let refuse = |why: String| {
+        let label = name.unwrap_or(c"");
+        logger.emit(label, Status::Error, LOG_CATEGORIES[LOG_ERROR].0, &format!("{func}: {why}"));
+        std::ptr::null_mut()
+    };
+    let name = match name {
+        Some(n) if !n.is_empty() => n,
+        _ => return refuse("instanceName must be a non-empty string".into()),
+    };
+    let expected = crate::variables::interface_token();
+    let what = if version == Version::Fmi2 { "fmuGUID" } else { "instantiationToken" };
+    match token.map(|t| t.to_string_lossy()) {
+        None => return refuse(format!("instance '{shown}': {what} is NULL (expected {expected})")),
+        Some(t) if t != expected => {
+            return refuse(format!(
+                "instance '{shown}': {what} {t} does not match this FMU ({expected}); \
+                 the modelDescription.xml belongs to another build"
+            ))
+        }
+        Some(_) => {}
+    }
+    if let Some(why) = refusal {
+        return refuse(format!("instance '{shown}': {why}"));
+    }
+    let inst = Box::new(Instance {
+        magic: INSTANCE_MAGIC,
+        version,
+        name: name.to_owned(),
+        logger,
+        categories: [logging_on; N_CATEGORIES],
+        func,
+        model: Model::new(),
+        state: State::Instantiated,
+        stop_time: None,
+        fmu_states: HashMap::new(),
+        warned: [false; InputWarning::ALL.len()],
+    });
+    inst.trace(|| format!("{func}: instance '{shown}' created"));
+    Box::into_raw(inst).cast()
+}
+
+/// The instance behind `ptr` if it is one of ours; NULL or foreign → `None`.
+///
+/// # Safety
+/// `ptr` is NULL or was returned by our `Instantiate` and not yet freed.
+unsafe fn instance_ptr(ptr: *mut c_void) -> Option<*mut Instance> {
+    let p = ptr.cast::<Instance>();
+    // SAFETY: non-NULL `p` points to an Instance (contract); `magic` is its first field.
+    (!p.is_null() && p.is_aligned() && unsafe { (*p).magic } == INSTANCE_MAGIC).then_some(p)
+}
+
+/// The frame of every exported function taking an instance: NULL/foreign instance →
+/// Error (no logger to tell); wrong FMI version, or `call` not allowed in the instance's
+/// state by the table → Error + log, nothing changed; then `f`, with panics caught,
+/// logged as "internal error" and the instance put in the Error state. `Err` and `Ok`
+/// both carry the status to return (`Err` for early exits through `?`).
+///
+/// # Safety
+/// `ptr` is NULL or a live instance from our `Instantiate`; nothing else may use the
+/// instance during the call (FMI: one instance is called from one thread at a time).
+pub(crate) unsafe fn with_instance(
+    ptr: *mut c_void,
+    version: Version,
+    func: &'static str,
+    call: Call,
+    f: impl FnOnce(&mut Instance) -> Result<Status, Status>,
+) -> Status {
+    // SAFETY: forwarded contract.
+    let Some(p) = (unsafe { instance_ptr(ptr) }) else { return Status::Error };
+    guarded(
+        || {
+            // SAFETY: `p` is a live instance, exclusively ours for this call.
+            let inst = unsafe { &mut *p };
+            inst.func = func;
+            if inst.version != version {
+                return inst.fail("called with an instance of the other FMI version");
+            }
+            inst.trace(|| format!("{func} (state {})", inst.state.name(version)));
+            let allowed = call.allowed();
+            if !allowed.contains(inst.state) {
+                let after_error = if inst.state == State::Error {
+                    "; after a failed call only SetFMUState, Reset and FreeInstance go on"
+                } else {
+                    ""
+                };
+                return inst.fail(&format!(
+                    "illegal call sequence: {func} is not allowed in state {} (only in {}){after_error}",
+                    inst.state.name(version),
+                    allowed.names(version)
+                ));
+            }
+            match f(inst) {
+                Ok(s) | Err(s) => s,
+            }
+        },
+        |msg| {
+            // SAFETY: as above; the closure that panicked no longer borrows the instance.
+            let inst = unsafe { &mut *p };
+            inst.state = State::Error;
+            guarded(
+                || inst.fail(&format!("internal error: {msg}; the instance is in the Error state")),
+                |_| Status::Error,
+            )
+        },
+    )
+}
+
+/// Frees an instance (NULL or foreign: nothing happens).
+///
+/// # Safety
+/// As [`with_instance`]; `ptr` is not used afterwards.
+pub(crate) unsafe fn free_instance(ptr: *mut c_void, version: Version, func: &'static str) {
+    // SAFETY: forwarded contract.
+    let Some(p) = (unsafe { instance_ptr(ptr) }) else { return };
+    guarded(
+        || {
+            // SAFETY: `p` came from Box::into_raw in `instantiate` and is freed once.
+            let mut inst = unsafe { Box::from_raw(p) };
+            if inst.version != version {
+                inst.func = func;
+                inst.fail("called with an instance of the other FMI version");
+                std::mem::forget(inst); // not ours to free through this API
+                return;
+            }
+            inst.trace(|| format!("{func} (and {} FMU state(s) not freed)", inst.fmu_states.len()));
+            inst.magic = 0; // dropping `inst` frees the instance and its FMU states
+        },
+        |_| (),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::ffi::{c_int, CStr};
+    use std::sync::Mutex;
+
+    extern "C" fn collect(
+        env: *mut c_void,
+        _status: c_int,
+        _category: *const c_char,
+        message: *const c_char,
+    ) {
+        // SAFETY: env is the Mutex below; message is a C string from the FMU.
+        let log = unsafe { &*(env as *const Mutex<Vec<String>>) };
+        log.lock().unwrap().push(unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned());
+    }
+
+    #[test]
+    fn a_panic_becomes_an_error_and_the_instance_survives() {
+        let log = Mutex::new(Vec::<String>::new());
+        let env = &log as *const _ as *mut c_void;
+        let token = CString::new(crate::variables::interface_token()).unwrap();
+        // SAFETY: valid C strings and callback.
+        let inst = unsafe {
+            instantiate(
+                Version::Fmi3,
+                "fmi3InstantiateCoSimulation",
+                c"p".as_ptr(),
+                token.as_ptr(),
+                Logger::Fmi3(collect, env),
+                false,
+                None,
+            )
+        };
+        assert!(!inst.is_null());
+        // SAFETY: `inst` is live.
+        let status = unsafe {
+            with_instance(inst, Version::Fmi3, "fmi3Boom", Call::GetValues, |_| {
+                panic!("boom {}", 42)
+            })
+        };
+        assert_eq!(status, Status::Error);
+        assert!(
+            log.lock()
+                .unwrap()
+                .iter()
+                .any(|m| m
+                    == "fmi3Boom: internal error: boom 42; the instance is in the Error state"),
+            "{log:?}"
+        );
+        // SAFETY: still live.
+        let status = unsafe {
+            with_instance(inst, Version::Fmi3, "fmi3Terminate", Call::Terminate, |_| Ok(Status::OK))
+        };
+        assert_eq!(status, Status::Error, "the Error state refuses what is not a way out");
+        // SAFETY: still live.
+        let status =
+            unsafe { with_instance(inst, Version::Fmi3, "fmi3Reset", Call::Reset, |i| i.reset()) };
+        assert_eq!(status, Status::OK);
+        // SAFETY: freed once.
+        unsafe { free_instance(inst, Version::Fmi3, "fmi3FreeInstance") };
+    }
+}

@@ -1,0 +1,146 @@
+//! The instance's way through the run: experiment setup, entering and leaving
+//! initialisation, terminate, reset, and doStep with what a step reports (events inside
+//! the step, input conditions that began).
+
+use super::instance::Instance;
+use super::logging::{Status, LOG_CATEGORIES, LOG_EVENTS, LOG_WARNING};
+use super::state_machine::State::{self, InitializationMode, Instantiated, StepMode, Terminated};
+use crate::model::{communication_point_tolerance, InputWarning};
+use crate::physics::StepEvents;
+
+impl Instance {
+    /// Start (and optional stop) time of the experiment.
+    pub(crate) fn setup_experiment(
+        &mut self,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Result<Status, Status> {
+        if let Some(stop) = stop {
+            if !stop.is_finite() || stop < start || start.is_nan() {
+                return self.error(&format!(
+                    "stopTime {stop} must be finite and not before startTime {start}"
+                ));
+            }
+        }
+        if let Err(e) = self.model.set_start_time(start) {
+            return self.error(&e);
+        }
+        self.stop_time = stop;
+        Ok(Status::OK)
+    }
+
+    pub(crate) fn enter_initialization(&mut self) -> Result<Status, Status> {
+        self.state = InitializationMode;
+        Ok(Status::OK)
+    }
+
+    pub(crate) fn terminate(&mut self) -> Result<Status, Status> {
+        self.state = Terminated;
+        Ok(Status::OK)
+    }
+
+    /// Ends initialisation: the model checks its parameters together (a refusal leaves
+    /// the instance in Initialization Mode, to correct them).
+    pub(crate) fn exit_initialization(&mut self) -> Result<Status, Status> {
+        match self.model.initialize() {
+            Ok(()) => {
+                self.state = StepMode;
+                Ok(Status::OK)
+            }
+            Err(e) => self.error(&format!("initialization failed: {e}")),
+        }
+    }
+
+    /// Back to the state after instantiation (logging settings are kept).
+    pub(crate) fn reset(&mut self) -> Result<Status, Status> {
+        self.model.reset();
+        self.state = Instantiated;
+        self.stop_time = None;
+        self.warned = [false; InputWarning::ALL.len()];
+        Ok(Status::OK)
+    }
+
+    /// One communication step. A step the model refuses up front, or one past the stop
+    /// time, is a refusal (nothing changes); a step whose computation fails puts the
+    /// instance in the Error state (the model itself is left as before the call).
+    pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Result<Status, Status> {
+        if let Err(e) = self.model.check_step(t, h) {
+            return self.error(&e);
+        }
+        if let Some(stop) = self.stop_time {
+            let end = t + h;
+            if end > stop + communication_point_tolerance(stop, h) {
+                return self.error(&format!(
+                    "a step from {t} by {h} ends at {end}, after stopTime {stop}"
+                ));
+            }
+        }
+        let conditions = InputWarning::ALL.map(|w| self.model.input_warning(w));
+        match self.model.do_step(t, h) {
+            Ok(events) => {
+                self.log_events(t, h, events);
+                Ok(self.warn_about_inputs(t, conditions))
+            }
+            Err(e) => {
+                self.state = State::Error;
+                self.error(&format!(
+                    "{e}; the step failed and the instance is in the Error state \
+                     (SetFMUState to an earlier state, Reset or FreeInstance go on)"
+                ))
+            }
+        }
+    }
+
+    /// Warning (and one logStatusWarning line each) for the input conditions that began
+    /// with this step; OK while none began (a lasting condition is not repeated).
+    fn warn_about_inputs(&mut self, t: f64, conditions: [bool; InputWarning::ALL.len()]) -> Status {
+        let mut status = Status::OK;
+        let log = self.enabled(LOG_WARNING);
+        for ((warning, holds), warned) in
+            InputWarning::ALL.into_iter().zip(conditions).zip(self.warned.iter_mut())
+        {
+            if holds && !*warned {
+                status = Status::Warning;
+                if log {
+                    let text = self.model.input_warning_text(warning);
+                    let message = format!("{}: step from {t}: {text}", self.func);
+                    self.logger.emit(
+                        &self.name,
+                        Status::Warning,
+                        LOG_CATEGORIES[LOG_WARNING].0,
+                        &message,
+                    );
+                }
+            }
+            *warned = holds;
+        }
+        status
+    }
+
+    fn log_events(&self, t: f64, h: f64, events: StepEvents) {
+        if !self.enabled(LOG_EVENTS) || events == StepEvents::default() {
+            return;
+        }
+        if events.rail_entered + events.rail_left > 0 {
+            self.log(
+                Status::OK,
+                LOG_EVENTS,
+                &format!(
+                    "step [{t}, {}]: driver output reached a supply rail {} time(s), left it {} time(s)",
+                    t + h,
+                    events.rail_entered,
+                    events.rail_left
+                ),
+            );
+        }
+        for (opened, chamber) in events.relief_opened.iter().zip(["A", "B"]) {
+            if *opened {
+                let message = format!(
+                    "step [{t}, {}]: relief valve of chamber {chamber} opened (p_{chamber} above relief.p_crack)",
+                    t + h
+                );
+                self.log(Status::OK, LOG_EVENTS, &message);
+            }
+        }
+    }
+}

@@ -1,0 +1,237 @@
+//! The typed get/set paths: one [`Access`] type per FMI getter/setter family converts
+//! between the C value type and the model's `f64`; the instance resolves the value
+//! references, checks types and states against the table and reads, or writes
+//! all-or-nothing.
+
+use std::ffi::c_int;
+
+use super::instance::Instance;
+use super::logging::Status;
+use super::state_machine::{settable_in, Version};
+use crate::variables::{Causality, VarType, Variability, VARIABLES};
+
+/// Conversions between a C value type and the model's `f64`, and which variable
+/// types the accessor serves. One zero-sized type per FMI getter/setter family.
+pub(crate) trait Access {
+    type C: Copy;
+    /// The FMI type name in messages ("Real", "Float64", ...).
+    const NAME: &'static str;
+    fn accepts(ty: VarType) -> bool;
+    fn to_c(v: f64) -> Self::C;
+    fn from_c(c: Self::C) -> f64;
+}
+
+macro_rules! access {
+    ($(#[$doc:meta])* $name:ident, $c:ty, $label:literal, $accepts:expr, $to:expr, $from:expr) => {
+        $(#[$doc])*
+        pub(crate) struct $name;
+        impl Access for $name {
+            type C = $c;
+            const NAME: &'static str = $label;
+            fn accepts(ty: VarType) -> bool {
+                ($accepts)(ty)
+            }
+            fn to_c(v: f64) -> $c {
+                ($to)(v)
+            }
+            fn from_c(c: $c) -> f64 {
+                ($from)(c)
+            }
+        }
+    };
+}
+
+// Values are exact: enumeration values and Booleans are small integers stored in f64.
+access!(Real2, f64, "Real", |t| t == VarType::Real, |v| v, |c| c);
+access!(
+    /// fmi2Integer serves enumerations (FMI 2 has no separate enumeration accessor).
+    Integer2, c_int, "Integer", |t| matches!(t, VarType::Enumeration(_)), |v: f64| v as c_int, |c: c_int| c as f64
+);
+access!(
+    Boolean2,
+    c_int,
+    "Boolean",
+    |t| t == VarType::Boolean,
+    |v: f64| (v != 0.0) as c_int,
+    |c: c_int| (c != 0) as u8 as f64
+);
+access!(Float64, f64, "Float64", |t| t == VarType::Real, |v| v, |c| c);
+access!(
+    /// FMI 3 enumerations are Int64.
+    Int64, i64, "Int64", |t| matches!(t, VarType::Enumeration(_)), |v: f64| v as i64, |c: i64| c as f64
+);
+access!(
+    /// fmi3Boolean is C `bool`; read as a byte so a non-0/1 byte from C is no UB.
+    Boolean3, u8, "Boolean", |t| t == VarType::Boolean, |v: f64| (v != 0.0) as u8, |c: u8| (c != 0) as u8 as f64
+);
+// FMI 3 types this FMU has no variables of: every value reference is refused.
+access!(Float32, f32, "Float32", |_| false, |v: f64| v as f32, |c: f32| c as f64);
+access!(Int8, i8, "Int8", |_| false, |v: f64| v as i8, |c: i8| c as f64);
+access!(UInt8, u8, "UInt8", |_| false, |v: f64| v as u8, |c: u8| c as f64);
+access!(Int16, i16, "Int16", |_| false, |v: f64| v as i16, |c: i16| c as f64);
+access!(UInt16, u16, "UInt16", |_| false, |v: f64| v as u16, |c: u16| c as f64);
+access!(Int32, i32, "Int32", |_| false, |v: f64| v as i32, |c: i32| c as f64);
+access!(UInt32, u32, "UInt32", |_| false, |v: f64| v as u32, |c: u32| c as f64);
+access!(UInt64, u64, "UInt64", |_| false, |v: f64| v as u64, |c: u64| c as f64);
+
+/// Type name of a variable as the given FMI version spells it.
+fn type_label(ty: VarType, version: Version) -> String {
+    match (ty, version) {
+        (VarType::Real, Version::Fmi2) => "Real".into(),
+        (VarType::Real, Version::Fmi3) => "Float64".into(),
+        (VarType::Boolean, _) => "Boolean".into(),
+        (VarType::Enumeration(e), Version::Fmi2) => {
+            format!("Enumeration {e} (use fmi2GetInteger/fmi2SetInteger)")
+        }
+        (VarType::Enumeration(e), Version::Fmi3) => {
+            format!("Enumeration {e} (use fmi3GetInt64/fmi3SetInt64)")
+        }
+    }
+}
+
+impl Instance {
+    /// The index of value reference `vr` if it names a variable of a type the accessor serves.
+    fn resolve(
+        &self,
+        vr: u32,
+        accessor: &str,
+        accepts: fn(VarType) -> bool,
+    ) -> Result<usize, Status> {
+        let Some(var) = VARIABLES.get(vr as usize) else {
+            return self.error(&format!("unknown value reference {vr}"));
+        };
+        if !accepts(var.ty) {
+            return self.error(&format!(
+                "value reference {vr} is {} of type {}, not {accessor}",
+                var.name,
+                type_label(var.ty, self.version)
+            ));
+        }
+        Ok(vr as usize)
+    }
+
+    /// May variable `index` be set in the current state? (The table's
+    /// [`settable_in`].)
+    fn check_settable(&self, index: usize) -> Result<(), Status> {
+        let var = &VARIABLES[index];
+        let Some(allowed) = settable_in(var.causality, var.variability) else {
+            let kind = if var.causality == Causality::Output {
+                "an output"
+            } else {
+                "the independent variable"
+            };
+            return self.error(&format!("{} is {kind} and cannot be set", var.name));
+        };
+        if !allowed.contains(self.state) {
+            let kind = match (var.causality, var.variability) {
+                (Causality::Input, _) => "an input",
+                (_, Variability::Fixed) => {
+                    "a fixed parameter (structure or hardware): it can be set only before \
+                     initialisation ends (or after Reset); the tunable parameters and the \
+                     inputs can be set during the run"
+                }
+                _ => "a tunable parameter",
+            };
+            return self.error(&format!(
+                "{} is {kind}; it cannot be set in state {} (only in {})",
+                var.name,
+                self.state.name(self.version),
+                allowed.names(self.version)
+            ));
+        }
+        Ok(())
+    }
+
+    /// Typed getter shared by `fmi2GetReal/Integer/Boolean` and `fmi3Get<numeric>/Boolean`.
+    /// FMI 2 passes `n_values = n_vr`.
+    ///
+    /// # Safety
+    /// Array contracts of [`Instance::slice`] / [`Instance::slice_mut`].
+    pub(crate) unsafe fn get_values<A: Access>(
+        &self,
+        vrs: *const u32,
+        n_vr: usize,
+        values: *mut A::C,
+        n_values: usize,
+    ) -> Result<Status, Status> {
+        if n_values != n_vr {
+            return self.error(&format!(
+                "nValues = {n_values} but the {n_vr} value references (all scalars) need {n_vr}"
+            ));
+        }
+        // SAFETY: forwarded array contracts.
+        let (vrs, out) = unsafe {
+            (self.slice("valueReferences", vrs, n_vr)?, self.slice_mut("values", values, n_values)?)
+        };
+        for (&vr, slot) in vrs.iter().zip(out.iter_mut()) {
+            let index = self.resolve(vr, A::NAME, A::accepts)?;
+            match self.model.get(index) {
+                Some(v) => *slot = A::to_c(v),
+                None => {
+                    return self
+                        .error(&format!("the model has no value for {}", VARIABLES[index].name))
+                }
+            }
+        }
+        Ok(Status::OK)
+    }
+
+    /// Typed setter: all references, types and states are checked first; values are
+    /// then applied all-or-nothing (the model is untouched on any error).
+    ///
+    /// # Safety
+    /// Array contracts of [`Instance::slice`].
+    pub(crate) unsafe fn set_values<A: Access>(
+        &mut self,
+        vrs: *const u32,
+        n_vr: usize,
+        values: *const A::C,
+        n_values: usize,
+    ) -> Result<Status, Status> {
+        if n_values != n_vr {
+            return self.error(&format!(
+                "nValues = {n_values} but the {n_vr} value references (all scalars) need {n_vr}"
+            ));
+        }
+        // SAFETY: forwarded array contracts.
+        let (vrs, vals) = unsafe {
+            (self.slice("valueReferences", vrs, n_vr)?, self.slice("values", values, n_values)?)
+        };
+        for &vr in vrs {
+            let index = self.resolve(vr, A::NAME, A::accepts)?;
+            self.check_settable(index)?;
+        }
+        // All or nothing; tunable parameters set in Step Mode rebuild the physics here.
+        let result =
+            self.model.set_all(vrs.iter().zip(vals).map(|(&vr, &c)| (vr as usize, A::from_c(c))));
+        match result {
+            Ok(()) => Ok(Status::OK),
+            Err(e) => self.error(&e),
+        }
+    }
+
+    /// Get/Set of a type with no variables (strings, binaries, clocks): only `n_vr = 0`
+    /// succeeds; every reference is refused as unknown or of another type.
+    ///
+    /// # Safety
+    /// Array contract of [`Instance::slice`] for `vrs`.
+    pub(crate) unsafe fn no_values(
+        &self,
+        type_name: &str,
+        vrs: *const u32,
+        n_vr: usize,
+        n_values: Option<usize>,
+    ) -> Result<Status, Status> {
+        if let Some(n) = n_values.filter(|&n| n != n_vr) {
+            return self.error(&format!(
+                "nValues = {n} but the {n_vr} value references (all scalars) need {n_vr}"
+            ));
+        }
+        // SAFETY: forwarded array contract.
+        let vrs = unsafe { self.slice("valueReferences", vrs, n_vr)? };
+        for &vr in vrs {
+            self.resolve(vr, type_name, |_| false)?;
+        }
+        Ok(Status::OK)
+    }
+}
