@@ -17,6 +17,7 @@ mod hbridge;
 mod lu4;
 mod outer_loop;
 mod params;
+pub mod rhs;
 mod rosenbrock;
 mod state;
 mod state_bytes;

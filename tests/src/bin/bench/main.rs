@@ -212,7 +212,7 @@ fn run_peer(
 ) -> Result<PeerSummary, String> {
     let mut total: Option<peer::PeerRun> = None;
     for &signal in &w.legs {
-        let r = peer::run(api, peer::TRANSCRIBED, w, signal, h, steps, o.peer_rtol)?;
+        let r = peer::run(api, w, signal, h, steps, o.peer_rtol)?;
         match total.as_mut() {
             None => total = Some(r),
             Some(t) => {
