@@ -196,24 +196,24 @@ impl Physics {
             // Between PWM edges the spans are short and irregular: a Taylor series beats
             // exp() there. Otherwise equal sub-steps with a cached propagator.
             let key = self.mode.index() + MODES.len() * self.stops.code();
-            let (substeps, h, matrix) = if self.mode == Mode::Switched {
-                (1, span, None)
+            let propagator = if self.mode == Mode::Switched {
+                None
             } else {
-                let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span)?;
-                (substeps, h, Some(matrix))
+                Some(self.cache.get(key, sys, span)?)
             };
+            let (substeps, h) = propagator.as_ref().map_or((1, span), |p| (p.substeps, p.h));
             for k in 0..substeps {
                 let settled = (key, h.to_bits(), z);
-                let mut next = match matrix {
-                    Some(_) if self.fixed_point == Some(settled) => z,
-                    Some(matrix) => matrix * z,
+                let mut next = match propagator {
+                    Some(ref p) if p.has_matrix() && self.fixed_point == Some(settled) => z,
+                    Some(ref p) => p.apply(sys, &z),
                     None => taylor_propagate(sys, &z, h),
                 };
                 driver::project_onto(&self.params, &self.digital, &mut next, self.mode);
                 // A stable system that returns to its state bit for bit is at rest: no guard
                 // can have crossed on the way.
                 if next == z {
-                    if matrix.is_some() {
+                    if propagator.as_ref().is_some_and(|p| p.has_matrix()) {
                         self.fixed_point = Some(settled);
                     }
                 } else if may_cross(sys, &z, &next, h, passed) {
