@@ -9,7 +9,7 @@ use std::cell::RefCell;
 
 use crate::physics::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
-    OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams,
+    OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams, Work,
 };
 use crate::variables::{start_values, vr, Causality, N_VARIABLES, VARIABLES};
 
@@ -140,6 +140,11 @@ impl Model {
         state.write_outputs();
         self.time = current_time + step;
         Ok(events)
+    }
+
+    /// Cumulative work counters of the integrators (for benchmarks; not part of the state).
+    pub fn work(&self) -> Work {
+        self.state.borrow().physics.work()
     }
 
     /// Refuses, without touching the model, a step no importer should ask for: before

@@ -122,6 +122,7 @@ impl Physics {
         cylinder: &mut CylinderState,
         memory: &mut IntegratorMemory,
         rest: &mut Option<[u64; 3]>,
+        work: &mut Work,
         (z0, z1, h): (&Vector, &Vector, f64),
         inputs: &Held,
     ) -> Result<(), String> {
@@ -166,7 +167,7 @@ impl Physics {
             end: [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
         };
         let spool = |tau: f64| (path.position(tau), path.rate(tau));
-        rosenbrock::advance_with_rate(
+        let stats = rosenbrock::advance_with_rate(
             params,
             cylinder,
             h,
@@ -175,6 +176,7 @@ impl Physics {
             spool,
             memory,
         )?;
+        work.add(&stats);
         Ok(())
     }
 
@@ -217,6 +219,7 @@ impl Physics {
                         self.fixed_point = Some(settled);
                     }
                 } else if may_cross(sys, &z, &next, h, passed) {
+                    self.work.guard_locations += 1;
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
                         Self::drive_cylinder(
                             sys,
@@ -224,6 +227,7 @@ impl Physics {
                             &mut self.cylinder,
                             &mut self.cylinder_memory,
                             &mut self.cylinder_rest,
+                            &mut self.work,
                             (&z, &at, tau),
                             inputs,
                         )?;
@@ -248,6 +252,7 @@ impl Physics {
                     &mut self.cylinder,
                     &mut self.cylinder_memory,
                     &mut self.cylinder_rest,
+                    &mut self.work,
                     (&z, &next, h),
                     inputs,
                 )?;

@@ -137,6 +137,8 @@ pub(crate) struct PropagatorCache {
     keys: [(usize, u64); CACHE_SLOTS],
     values: [Mat; CACHE_SLOTS],
     next: usize,
+    /// Matrix exponentials computed so far (a work counter).
+    pub(crate) exponentials: u64,
 }
 
 impl PropagatorCache {
@@ -145,6 +147,7 @@ impl PropagatorCache {
             keys: [(usize::MAX, 0); CACHE_SLOTS],
             values: [Mat::zeros(); CACHE_SLOTS],
             next: 0,
+            exponentials: 0,
         }
     }
 
@@ -181,6 +184,7 @@ impl PropagatorCache {
                 let slot = self.next;
                 self.keys[slot] = key;
                 self.values[slot] = scaled.exp();
+                self.exponentials += 1;
                 self.next = (slot + 1) % CACHE_SLOTS;
                 slot
             }

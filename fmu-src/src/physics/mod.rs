@@ -129,6 +129,37 @@ pub struct StepEvents {
     pub rail_left: u32,
 }
 
+/// Work the integrators have done since the instance was built or restored (cumulative
+/// counters for benchmarks; not part of the state).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Work {
+    /// Calls of the cylinder's Rosenbrock integrator (one per piece of spool path).
+    pub cylinder_calls: u64,
+    /// Its internal steps: accepted (Rodas3 ones included) and rejected.
+    pub steps_accepted: u64,
+    pub steps_rejected: u64,
+    /// Analytic Jacobians, LU factorisations of the 4x4 iteration matrix, evaluations of
+    /// the cylinder's right-hand side (a Jacobian counts as one).
+    pub jacobians: u64,
+    pub factorisations: u64,
+    pub function_evaluations: u64,
+    /// 9x9 matrix exponentials of the exact integrator (propagator cache misses).
+    pub exponentials: u64,
+    /// State-event searches (a guard may have crossed inside a sub-step).
+    pub guard_locations: u64,
+}
+
+impl Work {
+    fn add(&mut self, stats: &rosenbrock::Stats) {
+        self.cylinder_calls += 1;
+        self.steps_accepted += stats.accepted as u64;
+        self.steps_rejected += stats.rejected as u64;
+        self.jacobians += stats.jacobian_evaluations as u64;
+        self.factorisations += stats.factorisations as u64;
+        self.function_evaluations += stats.function_evaluations as u64;
+    }
+}
+
 /// The whole physical state and what is needed to advance it.
 #[derive(Clone)]
 pub struct Physics {
@@ -153,6 +184,7 @@ pub struct Physics {
     /// Supply pressure of the last step (the port flows depend on it).
     p_supply: f64,
     cache: PropagatorCache,
+    work: Work,
 }
 
 /// Inputs held over one step, as the equations use them.
@@ -215,6 +247,7 @@ impl Physics {
             fixed_point: None,
             p_supply: inputs.p_supply,
             cache: PropagatorCache::new(),
+            work: Work::default(),
         };
         let held = Held::new(&params, inputs);
         physics.outer = OuterLoop::at_start(&params.loops, held.reference, start_time);
@@ -270,6 +303,11 @@ impl Physics {
             self.active = self.systems[mode.index()].with_stops(&self.params, stops);
         }
         changed
+    }
+
+    /// The work done so far.
+    pub(crate) fn work(&self) -> Work {
+        Work { exponentials: self.cache.exponentials, ..self.work }
     }
 
     /// The outputs at the current state.

@@ -146,6 +146,8 @@ pub(crate) struct Stats {
     /// Model evaluations (an analytic linearisation counts as one, and in `jacobian_evaluations`).
     pub function_evaluations: u32,
     pub jacobian_evaluations: u32,
+    /// LU factorisations of the iteration matrix (one per attempted step, Rodas3 included).
+    pub factorisations: u32,
     /// Accepted steps taken with Rodas3 (included in `accepted`), and Rodas3 attempts whose
     /// error estimate failed (followed by Rodas4 on the same step; not in `rejected`).
     pub cheap: u32,
@@ -391,6 +393,7 @@ fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
         }
         row[i] += 1.0 / (h * method.gamma);
     }
+    stats.factorisations += 1;
     let lu = Lu4::factor(w).ok_or_else(|| "hydraulics: singular iteration matrix".to_string())?;
     let mut k = [[0.0; N_STATES]; S];
     let mut fi = lin.f0;
