@@ -194,7 +194,11 @@ impl Physics {
         let mut passed: u8 = 0;
         'modes: while done < span_total {
             let span = span_total - done;
-            let sys = &self.active;
+            let sys = if valve::has_stops(&self.params) {
+                &self.active
+            } else {
+                &self.systems[self.mode.index()]
+            };
             // Between PWM edges the spans are short and irregular: a Taylor series beats
             // exp() there. Otherwise equal sub-steps with a cached propagator.
             let key = self.mode.index() + MODES.len() * self.stops.code();

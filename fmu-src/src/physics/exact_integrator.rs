@@ -326,13 +326,41 @@ fn horner_vec(terms: &[Vector; TAYLOR_TERMS], t: f64) -> Vector {
 }
 
 /// First t in (0, limit] where the polynomial turns positive (sampled, then bisected to the
-/// last representable instant at or before the crossing's far side).
+/// last representable instant at or before the crossing's far side). Regula falsi with the
+/// Illinois modification first shrinks the bracket to near rounding in a few evaluations;
+/// bisection then finds the same adjacent pair as bisection from the start would.
 fn first_positive(coef: &[f64; TAYLOR_TERMS], w: f64, limit: f64) -> Option<f64> {
     let mut lo = 0.0;
+    let mut p_lo = coef[0];
     for s in 1..=GUARD_SAMPLES {
         let t = (w * s as f64 / GUARD_SAMPLES as f64).min(limit);
-        if horner(coef, t) > 0.0 {
-            let mut hi = t;
+        let p_t = horner(coef, t);
+        if p_t > 0.0 {
+            let (mut hi, mut p_hi) = (t, p_t);
+            let mut kept = 0i8;
+            for _ in 0..ILLINOIS_ITERATIONS {
+                if hi - lo <= 4.0 * f64::EPSILON * hi {
+                    break;
+                }
+                let mid = (lo * p_hi - hi * p_lo) / (p_hi - p_lo);
+                if !(mid > lo && mid < hi) {
+                    break;
+                }
+                let p_mid = horner(coef, mid);
+                if p_mid > 0.0 {
+                    (hi, p_hi) = (mid, p_mid);
+                    if kept == -1 {
+                        p_lo *= 0.5;
+                    }
+                    kept = -1;
+                } else {
+                    (lo, p_lo) = (mid, p_mid);
+                    if kept == 1 {
+                        p_hi *= 0.5;
+                    }
+                    kept = 1;
+                }
+            }
             for _ in 0..200 {
                 let mid = 0.5 * (lo + hi);
                 if mid <= lo || mid >= hi {
@@ -346,10 +374,13 @@ fn first_positive(coef: &[f64; TAYLOR_TERMS], w: f64, limit: f64) -> Option<f64>
             }
             return Some(hi);
         }
-        lo = t;
+        (lo, p_lo) = (t, p_t);
         if t >= limit {
             break;
         }
     }
     None
 }
+
+/// Regula falsi steps before the closing bisection (superlinear: ~10 reach rounding).
+const ILLINOIS_ITERATIONS: usize = 16;

@@ -168,7 +168,8 @@ pub struct Physics {
     z: Vector,
     mode: Mode,
     stops: valve::Stops,
-    /// The system of (mode, stops).
+    /// The system of (mode, stops) when the valve has travel stops (without, the mode's
+    /// own system in `systems` serves).
     active: ModeSystem,
     /// Discrete state of the H-bridge's digital loop and PWM.
     digital: Digital,
@@ -300,7 +301,10 @@ impl Physics {
         let changed = (mode, stops) != (self.mode, self.stops);
         if changed {
             (self.mode, self.stops) = (mode, stops);
-            self.active = self.systems[mode.index()].with_stops(&self.params, stops);
+            // Without stops the mode's own system serves (see `evolve`): no 1.8 kB copy.
+            if valve::has_stops(&self.params) {
+                self.active = self.systems[mode.index()].with_stops(&self.params, stops);
+            }
         }
         changed
     }
