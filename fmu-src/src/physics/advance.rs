@@ -192,6 +192,12 @@ impl Physics {
         let mut switches = 0;
         // Guards that fired without changing the mode: passed, ignored for this segment.
         let mut passed: u8 = 0;
+        // A driver mode change leaves the spool path smooth (position, rate and acceleration
+        // are the valve's states, continuous), so the cylinder takes the piece up to an
+        // event together with the piece after it: one Rosenbrock call instead of two. Not
+        // with travel stops, whose impacts break the path. (start state, duration)
+        let merge = !valve::has_stops(&self.params);
+        let mut pending: Option<(Vector, f64)> = None;
         'modes: while done < span_total {
             let span = span_total - done;
             let sys = if valve::has_stops(&self.params) {
@@ -225,16 +231,20 @@ impl Physics {
                 } else if may_cross(sys, &z, &next, h, passed) {
                     self.work.guard_locations += 1;
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
-                        Self::drive_cylinder(
-                            sys,
-                            &self.params.cylinder,
-                            &mut self.cylinder,
-                            &mut self.cylinder_memory,
-                            &mut self.cylinder_rest,
-                            &mut self.work,
-                            (&z, &at, tau),
-                            inputs,
-                        )?;
+                        if merge {
+                            pending = Some(pending.map_or((z, tau), |(z0, d)| (z0, d + tau)));
+                        } else {
+                            Self::drive_cylinder(
+                                sys,
+                                &self.params.cylinder,
+                                &mut self.cylinder,
+                                &mut self.cylinder_memory,
+                                &mut self.cylinder_rest,
+                                &mut self.work,
+                                (&z, &at, tau),
+                                inputs,
+                            )?;
+                        }
                         z = at;
                         done += k as f64 * h + tau;
                         let before = self.mode;
@@ -250,6 +260,7 @@ impl Physics {
                         continue 'modes;
                     }
                 }
+                let (z0, d) = pending.take().map_or((z, h), |(z0, d)| (z0, d + h));
                 Self::drive_cylinder(
                     sys,
                     &self.params.cylinder,
@@ -257,12 +268,25 @@ impl Physics {
                     &mut self.cylinder_memory,
                     &mut self.cylinder_rest,
                     &mut self.work,
-                    (&z, &next, h),
+                    (&z0, &next, d),
                     inputs,
                 )?;
                 z = next;
             }
             break;
+        }
+        if let Some((z0, d)) = pending {
+            // The segment ended on an event.
+            Self::drive_cylinder(
+                &self.systems[self.mode.index()],
+                &self.params.cylinder,
+                &mut self.cylinder,
+                &mut self.cylinder_memory,
+                &mut self.cylinder_rest,
+                &mut self.work,
+                (&z0, &z, d),
+                inputs,
+            )?;
         }
         self.z = z;
         Ok(())
