@@ -10,9 +10,7 @@
 //! flow only `-1.3e4, -1.9e3, -4.0e2`. An explicit method would sit on its stability boundary
 //! (`|lambda h| < 3.3`: steps of 2..50 us) in most of these; Rodas4 takes steps set by accuracy
 //! only: one step per 0.1 ms call at rest, in steady motion and pressed on a stop. Order 4
-//! keeps the step count low at the default tolerance (rtol 1e-7 on the scaled states: 0.1 Pa
-//! of pressure, 1 nm of position per step; the outputs stay within ~1e-7 of their ranges of
-//! a 1e-10 reference, and results within 1e-6 of their scales across communication steps).
+//! keeps the step count low at the 1e-8 tolerance.
 //! The 4x4 Jacobian and `df/dt = df/dx_s x_s'` are analytic (`linearise`, checked against
 //! differences in `tests::analytic_jacobian_matches_finite_differences`); the linear systems
 //! use a hand-written 4x4 LU with partial pivoting. A step that the call boundary cuts to at
@@ -122,9 +120,8 @@ pub(crate) struct IntegratorMemory {
 }
 
 impl Default for IntegratorMemory {
-    /// rtol 1e-7 (1e-8 costs 1.6x the steps for accuracy no output needs).
     fn default() -> Self {
-        IntegratorMemory::new(1e-7)
+        IntegratorMemory::new(1e-8)
     }
 }
 

@@ -1,6 +1,6 @@
 //! The accuracy yardstick: the same model (the rlib `ehsv_actuator::model::Model`, the code
 //! behind the C API) on the same communication grid and inputs, with the cylinder
-//! integrator's tolerance tightened from 1e-7 to [`REFERENCE_RTOL`] (or as asked). The valve and driver
+//! integrator's tolerance tightened from 1e-8 to [`REFERENCE_RTOL`] (or as asked). The valve and driver
 //! are propagated exactly either way.
 //!
 //! The tolerance is not a variable of the FMU; it travels in the instance's serialized
@@ -17,7 +17,7 @@ pub const REFERENCE_RTOL: f64 = 1e-10;
 /// See [`deviation`].
 const RANGE_FLOOR: f64 = 1e-3;
 /// The rtol the FMU runs at (checked in the state bytes, so a layout change fails loudly).
-const FMU_RTOL: f64 = 1e-7;
+const FMU_RTOL: f64 = 1e-8;
 
 /// Outputs after every communication step, `OUTPUTS` order.
 pub type Trace = Vec<[f64; OUTPUTS.len()]>;
