@@ -9,7 +9,7 @@ use std::cell::RefCell;
 
 use crate::physics::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
-    OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams,
+    OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams, Work,
 };
 use crate::variables::{
     start_values, vr, Causality, Variability, N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
@@ -175,6 +175,11 @@ impl Model {
         state.write_outputs();
         self.time = current_time + step;
         Ok(events)
+    }
+
+    /// Cumulative work counters of the integrators (for benchmarks; not part of the state).
+    pub fn work(&self) -> Work {
+        self.state.borrow().physics.work()
     }
 
     /// Refuses, without touching the model, a step no importer should ask for: before

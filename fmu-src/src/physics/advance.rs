@@ -122,6 +122,7 @@ impl Physics {
         cylinder: &mut CylinderState,
         memory: &mut IntegratorMemory,
         rest: &mut Option<[u64; 3]>,
+        work: &mut Work,
         (z0, z1, h): (&Vector, &Vector, f64),
         inputs: &Held,
     ) -> Result<(), String> {
@@ -166,7 +167,7 @@ impl Physics {
             end: [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
         };
         let spool = |tau: f64| (path.position(tau), path.rate(tau));
-        rosenbrock::advance_with_rate(
+        let stats = rosenbrock::advance_with_rate(
             params,
             cylinder,
             h,
@@ -175,6 +176,7 @@ impl Physics {
             spool,
             memory,
         )?;
+        work.add(&stats);
         Ok(())
     }
 
@@ -190,43 +192,59 @@ impl Physics {
         let mut switches = 0;
         // Guards that fired without changing the mode: passed, ignored for this segment.
         let mut passed: u8 = 0;
+        // A driver mode change leaves the spool path smooth (position, rate and acceleration
+        // are the valve's states, continuous), so the cylinder takes the piece up to an
+        // event together with the piece after it: one Rosenbrock call instead of two. Not
+        // with travel stops, whose impacts break the path. (start state, duration)
+        let merge = !valve::has_stops(&self.params);
+        let mut pending: Option<(Vector, f64)> = None;
         'modes: while done < span_total {
             let span = span_total - done;
-            let sys = &self.active;
+            let sys = if valve::has_stops(&self.params) {
+                &self.active
+            } else {
+                &self.systems[self.mode.index()]
+            };
             // Between PWM edges the spans are short and irregular: a Taylor series beats
             // exp() there. Otherwise equal sub-steps with a cached propagator.
             let key = self.mode.index() + MODES.len() * self.stops.code();
-            let (substeps, h, matrix) = if self.mode == Mode::Switched {
-                (1, span, None)
+            let propagator = if self.mode == Mode::Switched {
+                None
             } else {
-                let Propagator { substeps, h, ref matrix } = *self.cache.get(key, sys, span)?;
-                (substeps, h, Some(matrix))
+                Some(self.cache.get(key, sys, span)?)
             };
+            let (substeps, h) = propagator.as_ref().map_or((1, span), |p| (p.substeps, p.h));
             for k in 0..substeps {
                 let settled = (key, h.to_bits(), z);
-                let mut next = match matrix {
-                    Some(_) if self.fixed_point == Some(settled) => z,
-                    Some(matrix) => matrix * z,
+                let mut next = match propagator {
+                    Some(ref p) if p.has_matrix() && self.fixed_point == Some(settled) => z,
+                    Some(ref p) => p.apply(sys, &z),
                     None => taylor_propagate(sys, &z, h),
                 };
                 driver::project_onto(&self.params, &self.digital, &mut next, self.mode);
                 // A stable system that returns to its state bit for bit is at rest: no guard
                 // can have crossed on the way.
                 if next == z {
-                    if matrix.is_some() {
+                    if propagator.as_ref().is_some_and(|p| p.has_matrix()) {
                         self.fixed_point = Some(settled);
                     }
                 } else if may_cross(sys, &z, &next, h, passed) {
+                    self.work.guard_locations += 1;
                     if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
-                        Self::drive_cylinder(
-                            sys,
-                            &self.params.cylinder,
-                            &mut self.cylinder,
-                            &mut self.cylinder_memory,
-                            &mut self.cylinder_rest,
-                            (&z, &at, tau),
-                            inputs,
-                        )?;
+                        if merge {
+                            pending = Some(pending.map_or((z, tau), |(z0, d)| (z0, d + tau)));
+                        } else {
+                            Self::drive_cylinder(
+                                sys,
+                                &self.params.cylinder,
+                                &mut self.cylinder,
+                                &mut self.cylinder_memory,
+                                &mut self.cylinder_rest,
+                                &mut self.work,
+                                (&z, &at, tau),
+                                inputs,
+                            )?;
+                        }
                         z = at;
                         done += k as f64 * h + tau;
                         let before = self.mode;
@@ -242,18 +260,33 @@ impl Physics {
                         continue 'modes;
                     }
                 }
+                let (z0, d) = pending.take().map_or((z, h), |(z0, d)| (z0, d + h));
                 Self::drive_cylinder(
                     sys,
                     &self.params.cylinder,
                     &mut self.cylinder,
                     &mut self.cylinder_memory,
                     &mut self.cylinder_rest,
-                    (&z, &next, h),
+                    &mut self.work,
+                    (&z0, &next, d),
                     inputs,
                 )?;
                 z = next;
             }
             break;
+        }
+        if let Some((z0, d)) = pending {
+            // The segment ended on an event.
+            Self::drive_cylinder(
+                &self.systems[self.mode.index()],
+                &self.params.cylinder,
+                &mut self.cylinder,
+                &mut self.cylinder_memory,
+                &mut self.cylinder_rest,
+                &mut self.work,
+                (&z0, &z, d),
+                inputs,
+            )?;
         }
         self.z = z;
         Ok(())

@@ -91,47 +91,84 @@ impl ModeSystem {
     }
 }
 
-/// How a span is cut into equal sub-steps, with the sub-step propagator exp(A h).
-#[derive(Clone, Copy)]
-pub(crate) struct Propagator {
-    pub(crate) substeps: usize,
-    pub(crate) h: f64,
-    pub(crate) matrix: Mat,
+/// Mantissa bits of a sub-step that select its cached propagator; the rest of the
+/// sub-step (below `2^-KEY_BITS` of it) is propagated by a short Taylor series.
+const KEY_BITS: u32 = 8;
+/// Spans with |lambda| span below this go by Taylor series alone (a handful of terms,
+/// cheaper than a matrix exponential of a span that will not come again).
+const TAYLOR_ONLY: f64 = 0.05;
+
+/// `h` with all but the top [`KEY_BITS`] bits of its mantissa cleared (`h >= 0`).
+fn key_span(h: f64) -> f64 {
+    f64::from_bits(h.to_bits() & !((1u64 << (52 - KEY_BITS)) - 1))
 }
 
-/// A few recently used propagators, keyed by system and span.
+/// How a span is cut into equal sub-steps of `h`, and how one sub-step propagates:
+/// `z(h) = taylor(rest) exp(A key) z` with `h = key + rest` (no matrix: Taylor series alone).
+/// The split depends on the span only, never on what the cache holds, so a propagation
+/// gives the same bits whether its matrix was cached or not (restored FMU states
+/// continue bit for bit).
+pub(crate) struct Propagator<'a> {
+    pub(crate) substeps: usize,
+    pub(crate) h: f64,
+    matrix: Option<&'a Mat>,
+    rest: f64,
+}
+
+impl Propagator<'_> {
+    /// One sub-step from `z`.
+    pub(crate) fn apply(&self, sys: &ModeSystem, z: &Vector) -> Vector {
+        match self.matrix {
+            Some(matrix) if self.rest > 0.0 => taylor_propagate(sys, &(matrix * z), self.rest),
+            Some(matrix) => matrix * z,
+            None => taylor_propagate(sys, z, self.h),
+        }
+    }
+
+    /// Whether a sub-step goes through a cached matrix (the fixed-point shortcut needs one).
+    pub(crate) fn has_matrix(&self) -> bool {
+        self.matrix.is_some()
+    }
+}
+
+/// Recently used sub-step propagators exp(A key), keyed by system and the key span's bits.
 #[derive(Clone, Copy)]
 pub(crate) struct PropagatorCache {
     keys: [(usize, u64); CACHE_SLOTS],
-    values: [Propagator; CACHE_SLOTS],
+    values: [Mat; CACHE_SLOTS],
     next: usize,
+    /// Matrix exponentials computed so far (a work counter).
+    pub(crate) exponentials: u64,
 }
 
 impl PropagatorCache {
     pub(crate) fn new() -> Self {
-        let empty = Propagator { substeps: 0, h: 0.0, matrix: Mat::zeros() };
         PropagatorCache {
             keys: [(usize::MAX, 0); CACHE_SLOTS],
-            values: [empty; CACHE_SLOTS],
+            values: [Mat::zeros(); CACHE_SLOTS],
             next: 0,
+            exponentials: 0,
         }
     }
 
-    /// `system` names the (mode, stops) pair; keys hold the bits of the span, so equal
-    /// communication steps (the common case) hit exactly.
+    /// `system` names the (mode, stops) pair of `sys`.
     pub(crate) fn get(
         &mut self,
         system: usize,
         sys: &ModeSystem,
         span: f64,
-    ) -> Result<&Propagator, String> {
-        let key = (system, span.to_bits());
+    ) -> Result<Propagator<'_>, String> {
+        let substeps = sys.substeps(span, THETA_COARSE);
+        let h = span / substeps as f64;
+        if h * sys.radius <= TAYLOR_ONLY {
+            return Ok(Propagator { substeps, h, matrix: None, rest: 0.0 });
+        }
+        let key_h = key_span(h);
+        let key = (system, key_h.to_bits());
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
             None => {
-                let substeps = sys.substeps(span, THETA_COARSE);
-                let h = span / substeps as f64;
-                let scaled = sys.a * h;
+                let scaled = sys.a * key_h;
                 // exp() estimates norms of powers up to (A h)^10 and squares log2 of them
                 // times: past ~1e30 they overflow and the squaring never ends. Physical
                 // cases stay decades below MAX_SCALED_NORM (a 1e20 s step gives ~3e23).
@@ -146,12 +183,13 @@ impl PropagatorCache {
                 }
                 let slot = self.next;
                 self.keys[slot] = key;
-                self.values[slot] = Propagator { substeps, h, matrix: scaled.exp() };
+                self.values[slot] = scaled.exp();
+                self.exponentials += 1;
                 self.next = (slot + 1) % CACHE_SLOTS;
                 slot
             }
         };
-        Ok(&self.values[slot])
+        Ok(Propagator { substeps, h, matrix: Some(&self.values[slot]), rest: h - key_h })
     }
 }
 
@@ -288,13 +326,41 @@ fn horner_vec(terms: &[Vector; TAYLOR_TERMS], t: f64) -> Vector {
 }
 
 /// First t in (0, limit] where the polynomial turns positive (sampled, then bisected to the
-/// last representable instant at or before the crossing's far side).
+/// last representable instant at or before the crossing's far side). Regula falsi with the
+/// Illinois modification first shrinks the bracket to near rounding in a few evaluations;
+/// bisection then finds the same adjacent pair as bisection from the start would.
 fn first_positive(coef: &[f64; TAYLOR_TERMS], w: f64, limit: f64) -> Option<f64> {
     let mut lo = 0.0;
+    let mut p_lo = coef[0];
     for s in 1..=GUARD_SAMPLES {
         let t = (w * s as f64 / GUARD_SAMPLES as f64).min(limit);
-        if horner(coef, t) > 0.0 {
-            let mut hi = t;
+        let p_t = horner(coef, t);
+        if p_t > 0.0 {
+            let (mut hi, mut p_hi) = (t, p_t);
+            let mut kept = 0i8;
+            for _ in 0..ILLINOIS_ITERATIONS {
+                if hi - lo <= 4.0 * f64::EPSILON * hi {
+                    break;
+                }
+                let mid = (lo * p_hi - hi * p_lo) / (p_hi - p_lo);
+                if !(mid > lo && mid < hi) {
+                    break;
+                }
+                let p_mid = horner(coef, mid);
+                if p_mid > 0.0 {
+                    (hi, p_hi) = (mid, p_mid);
+                    if kept == -1 {
+                        p_lo *= 0.5;
+                    }
+                    kept = -1;
+                } else {
+                    (lo, p_lo) = (mid, p_mid);
+                    if kept == 1 {
+                        p_hi *= 0.5;
+                    }
+                    kept = 1;
+                }
+            }
             for _ in 0..200 {
                 let mid = 0.5 * (lo + hi);
                 if mid <= lo || mid >= hi {
@@ -308,10 +374,13 @@ fn first_positive(coef: &[f64; TAYLOR_TERMS], w: f64, limit: f64) -> Option<f64>
             }
             return Some(hi);
         }
-        lo = t;
+        (lo, p_lo) = (t, p_t);
         if t >= limit {
             break;
         }
     }
     None
 }
+
+/// Regula falsi steps before the closing bisection (superlinear: ~10 reach rounding).
+const ILLINOIS_ITERATIONS: usize = 16;

@@ -14,22 +14,27 @@ impl Lu4 {
         let mut pivot = [0; N_STATES];
         for col in 0..N_STATES {
             let mut best = col;
-            for row in col + 1..N_STATES {
-                if a[row][col].abs() > a[best][col].abs() {
+            let mut best_abs = a[col][col].abs();
+            for (row, values) in a.iter().enumerate().skip(col + 1) {
+                if values[col].abs() > best_abs {
                     best = row;
+                    best_abs = values[col].abs();
                 }
             }
-            if a[best][col] == 0.0 || !a[best][col].is_finite() {
+            let p = a[best][col];
+            if p == 0.0 || !p.is_finite() {
                 return None;
             }
-            a.swap(col, best);
+            if best != col {
+                a.swap(col, best);
+            }
             pivot[col] = best;
             let pivot_row = a[col];
             for row in a.iter_mut().skip(col + 1) {
-                let m = row[col] / pivot_row[col];
+                let m = row[col] / p;
                 row[col] = m;
-                for (value, above) in row.iter_mut().zip(pivot_row.iter()).skip(col + 1) {
-                    *value -= m * above;
+                for c in col + 1..N_STATES {
+                    row[c] -= m * pivot_row[c];
                 }
             }
         }

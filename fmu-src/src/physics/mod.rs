@@ -18,6 +18,7 @@ mod lu4;
 mod outer_loop;
 mod params;
 mod retune;
+pub mod rhs;
 mod rosenbrock;
 mod state;
 mod state_bytes;
@@ -30,9 +31,7 @@ pub use params::{
 
 use cylinder::{CylinderParams, CylinderState};
 use driver::{Mode, MODES};
-use exact_integrator::{
-    locate_event, may_cross, taylor_propagate, ModeSystem, Propagator, PropagatorCache,
-};
+use exact_integrator::{locate_event, may_cross, taylor_propagate, ModeSystem, PropagatorCache};
 use hbridge::Digital;
 use outer_loop::{LoopParams, OuterLoop};
 use rosenbrock::IntegratorMemory;
@@ -134,6 +133,37 @@ pub struct StepEvents {
     pub relief_opened: [bool; 2],
 }
 
+/// Work the integrators have done since the instance was built or restored (cumulative
+/// counters for benchmarks; not part of the state).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Work {
+    /// Calls of the cylinder's Rosenbrock integrator (one per piece of spool path).
+    pub cylinder_calls: u64,
+    /// Its internal steps: accepted (Rodas3 ones included) and rejected.
+    pub steps_accepted: u64,
+    pub steps_rejected: u64,
+    /// Analytic Jacobians, LU factorisations of the 4x4 iteration matrix, evaluations of
+    /// the cylinder's right-hand side (a Jacobian counts as one).
+    pub jacobians: u64,
+    pub factorisations: u64,
+    pub function_evaluations: u64,
+    /// 9x9 matrix exponentials of the exact integrator (propagator cache misses).
+    pub exponentials: u64,
+    /// State-event searches (a guard may have crossed inside a sub-step).
+    pub guard_locations: u64,
+}
+
+impl Work {
+    fn add(&mut self, stats: &rosenbrock::Stats) {
+        self.cylinder_calls += 1;
+        self.steps_accepted += stats.accepted as u64;
+        self.steps_rejected += stats.rejected as u64;
+        self.jacobians += stats.jacobian_evaluations as u64;
+        self.factorisations += stats.factorisations as u64;
+        self.function_evaluations += stats.function_evaluations as u64;
+    }
+}
+
 /// The whole physical state and what is needed to advance it.
 #[derive(Clone)]
 pub struct Physics {
@@ -142,7 +172,8 @@ pub struct Physics {
     z: Vector,
     mode: Mode,
     stops: valve::Stops,
-    /// The system of (mode, stops).
+    /// The system of (mode, stops) when the valve has travel stops (without, the mode's
+    /// own system in `systems` serves).
     active: ModeSystem,
     /// Discrete state of the H-bridge's digital loop and PWM.
     digital: Digital,
@@ -158,6 +189,7 @@ pub struct Physics {
     /// Supply pressure of the last step (the port flows depend on it).
     p_supply: f64,
     cache: PropagatorCache,
+    work: Work,
 }
 
 /// Inputs held over one step, as the equations use them.
@@ -220,6 +252,7 @@ impl Physics {
             fixed_point: None,
             p_supply: inputs.p_supply,
             cache: PropagatorCache::new(),
+            work: Work::default(),
         };
         let held = Held::new(&params, inputs);
         params.cylinder.check_supply(held.p_supply)?;
@@ -273,9 +306,17 @@ impl Physics {
         let changed = (mode, stops) != (self.mode, self.stops);
         if changed {
             (self.mode, self.stops) = (mode, stops);
-            self.active = self.systems[mode.index()].with_stops(&self.params, stops);
+            // Without stops the mode's own system serves (see `evolve`): no 1.8 kB copy.
+            if valve::has_stops(&self.params) {
+                self.active = self.systems[mode.index()].with_stops(&self.params, stops);
+            }
         }
         changed
+    }
+
+    /// The work done so far.
+    pub(crate) fn work(&self) -> Work {
+        Work { exponentials: self.cache.exponentials, ..self.work }
     }
 
     /// The outputs at the current state.

@@ -138,6 +138,7 @@ fn measure(
     // How far the yardstick itself is converged: the same run 10x tighter.
     let tighter = reference::run(w, w.legs[0], h, steps, 0.1 * o.reference_rtol)?;
     let reference_spread = report::worst(&reference::deviation(&reference, &tighter));
+    let work = report::WorkSummary::new(&reference::fmu_work(w, w.legs[0], h, steps)?, steps);
     let mut rows = Vec::new();
     let mut first_trace: Option<reference::Trace> = None;
     for fmu in fmus {
@@ -193,6 +194,7 @@ fn measure(
             step_wall: timed.step_wall.unwrap_or_default(),
             deviation: Some(dev),
             reference_spread,
+            work,
             peer,
         });
         first_trace.get_or_insert(best.trace);
@@ -212,7 +214,7 @@ fn run_peer(
 ) -> Result<PeerSummary, String> {
     let mut total: Option<peer::PeerRun> = None;
     for &signal in &w.legs {
-        let r = peer::run(api, peer::TRANSCRIBED, w, signal, h, steps, o.peer_rtol)?;
+        let r = peer::run(api, w, signal, h, steps, o.peer_rtol)?;
         match total.as_mut() {
             None => total = Some(r),
             Some(t) => {

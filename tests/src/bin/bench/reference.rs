@@ -9,6 +9,7 @@
 //! and restores them, so nothing in the FMU changes for the benchmark.
 
 use ehsv_actuator::model::Model;
+use ehsv_actuator::physics::Work;
 
 use crate::workloads::{Signal, Workload, INPUTS, OUTPUTS};
 
@@ -67,8 +68,18 @@ pub fn run(
     steps: usize,
     rtol: f64,
 ) -> Result<Trace, String> {
-    let mut m = start(workload, Some(rtol))?;
+    Ok(run_model(start(workload, Some(rtol))?, signal, h, steps)?.0)
+}
+
+/// The work the FMU's integrators do on one signal of `workload` (the same computation as
+/// through the C API, at the FMU's own tolerance, through the rlib, which can read it).
+pub fn fmu_work(workload: &Workload, signal: Signal, h: f64, steps: usize) -> Result<Work, String> {
+    Ok(run_model(start(workload, None)?, signal, h, steps)?.1)
+}
+
+fn run_model(mut m: Model, signal: Signal, h: f64, steps: usize) -> Result<(Trace, Work), String> {
     let mut trace = Trace::with_capacity(steps);
+    let before = m.work();
     for k in 0..steps {
         let t = k as f64 * h;
         for (vr, value) in INPUTS.iter().zip(signal.inputs(t)) {
@@ -77,7 +88,18 @@ pub fn run(
         m.do_step(t, h)?; // the master's time base, as through the C API
         trace.push(OUTPUTS.map(|vr| m.get(vr).unwrap()));
     }
-    Ok(trace)
+    let after = m.work();
+    let work = Work {
+        cylinder_calls: after.cylinder_calls - before.cylinder_calls,
+        steps_accepted: after.steps_accepted - before.steps_accepted,
+        steps_rejected: after.steps_rejected - before.steps_rejected,
+        jacobians: after.jacobians - before.jacobians,
+        factorisations: after.factorisations - before.factorisations,
+        function_evaluations: after.function_evaluations - before.function_evaluations,
+        exponentials: after.exponentials - before.exponentials,
+        guard_locations: after.guard_locations - before.guard_locations,
+    };
+    Ok((trace, work))
 }
 
 /// Largest deviation of each output from the reference as a fraction of the reference's

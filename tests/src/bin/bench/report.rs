@@ -1,6 +1,8 @@
 //! The benchmark table.
 
 use crate::fmi::Version;
+use ehsv_actuator::physics::Work;
+
 use crate::peer::PeerRun;
 use crate::timing::Summary;
 use crate::workloads::OUTPUT_NAMES;
@@ -20,7 +22,35 @@ pub struct Row {
     pub deviation: Option<(f64, usize)>,
     /// The same for the reference against a 10x tighter one (how converged the yardstick is).
     pub reference_spread: (f64, usize),
+    /// The FMU's integrator work on the workload's first leg.
+    pub work: WorkSummary,
     pub peer: Option<PeerSummary>,
+}
+
+/// The FMU's integrator work per communication point.
+#[derive(Clone, Copy)]
+pub struct WorkSummary {
+    /// Rosenbrock steps of the cylinder (accepted and rejected).
+    pub steps: f64,
+    pub jacobians: f64,
+    pub factorisations: f64,
+    /// 9x9 matrix exponentials (propagator cache misses).
+    pub exponentials: f64,
+    /// State-event searches.
+    pub locations: f64,
+}
+
+impl WorkSummary {
+    pub fn new(w: &Work, points: usize) -> Self {
+        let per = |n: u64| n as f64 / points as f64;
+        WorkSummary {
+            steps: per(w.steps_accepted + w.steps_rejected),
+            jacobians: per(w.jacobians),
+            factorisations: per(w.factorisations),
+            exponentials: per(w.exponentials),
+            locations: per(w.guard_locations),
+        }
+    }
 }
 
 /// The peer's figures for a (workload, step) pair.
@@ -77,7 +107,7 @@ fn deviation(d: Option<(f64, usize)>) -> String {
 
 pub fn header() {
     println!(
-        "{:<22} {:>5} {:>4} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} | {:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}",
+        "{:<22} {:>5} {:>4} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6} {:>6} {:>6} {:>6} {:>6} | {:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}",
         "workload",
         "h",
         "FMI",
@@ -89,6 +119,11 @@ pub fn header() {
         "maxwall",
         "dev/range",
         "ref spread",
+        "st/pt",
+        "jac/pt",
+        "LU/pt",
+        "exp/pt",
+        "loc/pt",
         "peerRTF",
         "peer dev/range",
         "st/pt",
@@ -116,7 +151,7 @@ pub fn print(row: &Row) {
         }
     };
     println!(
-        "{:<22} {:>5.0e} {:>4} {:>7.1} {:>7.1} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} | {peer}",
+        "{:<22} {:>5.0e} {:>4} {:>7.1} {:>7.1} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6.2} {:>6.2} {:>6.2} {:>6.3} {:>6.2} | {peer}",
         row.workload,
         row.h,
         row.version.label(),
@@ -128,6 +163,11 @@ pub fn print(row: &Row) {
         us(row.step_wall.max),
         deviation(row.deviation),
         deviation(Some(row.reference_spread)),
+        row.work.steps,
+        row.work.jacobians,
+        row.work.factorisations,
+        row.work.exponentials,
+        row.work.locations,
     );
 }
 
@@ -144,4 +184,6 @@ peer: SUNDIALS CVODE (BDF, Newton, dense LU, DQ Jacobian) on the same equations,
   restarted at every input change and time event; st/pt, jac/pt, LU/pt, rst/pt: its steps,
   Jacobians, LU factorisations and restarts per communication point; peer/FMU: its thread CPU
   time over the FMU's (untimed run): > 1 means the FMU is that many times faster.
-FMU internal steps and Jacobian/propagator counts per point: not exposed by the physics yet.";
+st/pt, jac/pt, LU/pt, exp/pt, loc/pt before the bar: the FMU's own work per communication point
+  (`Model::work()` through the rlib on the same run): cylinder Rosenbrock steps (accepted and
+  rejected), Jacobians, LU factorisations, 9x9 matrix exponentials, state-event searches.";

@@ -3,23 +3,20 @@
 //! inputs are set at each communication point, the method is restarted (CVodeReInit)
 //! whenever the right-hand side jumps (an input changed, a PWM edge, a sample of a digital
 //! loop), and CVODE integrates to each point or time event with it as the stop time.
-//! The digital parts (H-bridge PWM and PI, the outer loops' PID) are the rlib's own
-//! `physics::hbridge::Digital` and `physics::outer::OuterLoop`.
+//! The equations are the physics' own whole-model right-hand side
+//! (`ehsv_actuator::physics::rhs`, built from the same component functions the FMU
+//! integrates), and so are the digital parts (H-bridge PWM and PI, the outer loops' PID,
+//! `physics::rhs::Sampled`): the model is transcribed once.
 
 mod cvode;
-mod rhs;
 
 use std::ffi::{c_int, c_void};
 
-use ehsv_actuator::hydraulics::{self, CylinderState};
-use ehsv_actuator::physics::hbridge::Digital;
-use ehsv_actuator::physics::outer::{ControlMode, OuterLoop};
-use ehsv_actuator::physics::Params;
+use ehsv_actuator::physics::rhs::{Held, Sampled, WholeModel, I, NY, PA, PB, U, UI, V, X, XF, XS};
+use ehsv_actuator::physics::{ControlMode, DriverKind};
 use ehsv_actuator::variables::{vr, N_VARIABLES};
 
 pub use cvode::{Api, Counters};
-pub use rhs::{Held, Rhs, NY, TRANSCRIBED};
-use rhs::{I, PA, PB, U, UI, V, X, XF, XS};
 
 use crate::reference::Trace;
 use crate::timing::Stopwatch;
@@ -27,8 +24,7 @@ use crate::workloads::{Signal, Workload};
 
 /// What the solver's callback needs: the model and the inputs in force.
 struct Context<'a> {
-    rhs: Rhs,
-    params: Params,
+    model: WholeModel,
     held: Held,
     api: &'a Api,
 }
@@ -45,7 +41,7 @@ unsafe extern "C" fn cvode_rhs(
         let ctx = &*(data as *const Context);
         let y = &*((ctx.api.array)(y) as *const [f64; NY]);
         let dy = &mut *((ctx.api.array)(dy) as *mut [f64; NY]);
-        (ctx.rhs)(&ctx.params, &ctx.held, y, dy);
+        ctx.model.rhs(&ctx.held, y, dy);
     }
     0
 }
@@ -60,20 +56,10 @@ pub struct PeerRun {
     pub trace: Trace,
 }
 
-/// Error weights: the tolerance of state k is `rtol * SCALE[k]` absolute (the FMU weighs
-/// the cylinder the same way, `hydraulics::STATE_SCALE`).
-fn scales(p: &Params) -> [f64; NY] {
-    let i = 1e-2;
-    let xf = p.k1 * i / p.kf;
-    let [pa, pb, x, v] = hydraulics::STATE_SCALE;
-    [i, 100.0, 100.0, xf, xf * p.wn, p.k1 * i / p.kw, pa, pb, x, v]
-}
-
 /// Runs `signal` of `workload` for `steps` communication steps of `h` with relative
 /// tolerance `rtol`, from the FMU's own start state.
 pub fn run(
     api: &Api,
-    rhs: Rhs,
     workload: &Workload,
     signal: Signal,
     h: f64,
@@ -85,11 +71,8 @@ pub fn run(
     for (k, v) in values.iter_mut().enumerate() {
         *v = start.get(k).unwrap();
     }
-    let p = Params::from_values(&values)?;
-    if p.x_flapper_max > 0.0 || p.x_spool_max > 0.0 {
-        return Err("the peer does not model valve travel stops".into());
-    }
-    let rail = (values[vr::V_SUPPLY] - p.v_drop).max(0.0);
+    let model = WholeModel::from_values(&values)?;
+    let rail = model.rail(values[vr::V_SUPPLY]);
     let mut y0 = [0.0; NY];
     y0[I] = values[vr::I_COIL];
     y0[UI] = values[vr::U_DRIVER]; // at the start equilibrium the error is 0: u = ui
@@ -100,23 +83,31 @@ pub fn run(
     y0[PB] = values[vr::P_B];
     y0[X] = values[vr::X_PISTON];
     y0[V] = values[vr::V_PISTON];
-    // The equilibrium voltage R i (the H-bridge's output is one of the rails, its mean is this).
-    let u_mean = (p.r_total * values[vr::I_COIL]).clamp(-rail, rail);
-    let mut digital = Digital::at_equilibrium(&p.hbridge, u_mean, u_mean, rail, 0.0);
-    let mut outer = OuterLoop::at_start(&p.loops, 0.0, 0.0);
+    if model.driver() == DriverKind::HBridge {
+        // The bridge's mean voltage R i holds the current; u and ui are not states there.
+        y0[UI] = 0.0;
+        y0[U] = 0.0;
+    }
+    let [i_ref0, q_ref0, x_ref0, _] = signal.inputs(0.0);
+    let reference = |q_ref: f64, x_ref: f64| match model.control_mode() {
+        ControlMode::Flow => q_ref,
+        ControlMode::Position => x_ref,
+        ControlMode::Current => 0.0,
+    };
+    let mut sampled =
+        Sampled::at_start(&model, values[vr::I_COIL], rail, reference(q_ref0, x_ref0), 0.0);
     let mut ctx = Box::new(Context {
-        rhs,
-        params: p,
+        model,
         held: Held {
-            i_cmd: 0.0,
+            i_cmd: sampled.command(&model, i_ref0),
             rail,
-            u_bridge: digital.output(rail),
+            u_bridge: sampled.bridge_output(rail),
             p_supply: values[vr::P_SUPPLY],
             f_ext: values[vr::F_EXT],
         },
         api,
     });
-    let atol = scales(&p).map(|s| s * rtol);
+    let atol = model.error_scales().map(|s| s * rtol);
     let data = &mut *ctx as *mut Context as *mut c_void;
     let mut solver = cvode::Solver::new(api, cvode_rhs, data, &y0, rtol, &atol)?;
     let mut trace = Trace::with_capacity(steps);
@@ -127,19 +118,8 @@ pub fn run(
         let t0 = k as f64 * h;
         let t1 = t0 + h;
         let [i_ref, q_ref, x_ref, f_ext] = signal.inputs(t0);
-        let reference = match p.loops.mode {
-            ControlMode::Flow => q_ref,
-            ControlMode::Position => x_ref,
-            ControlMode::Current => 0.0,
-        };
-        let command = |outer: &OuterLoop| {
-            if p.loops.mode == ControlMode::Current {
-                i_ref
-            } else {
-                outer.command
-            }
-        };
-        let held = Held { i_cmd: command(&outer), f_ext, ..ctx.held };
+        let reference = reference(q_ref, x_ref);
+        let held = Held { i_cmd: sampled.command(&model, i_ref), f_ext, ..ctx.held };
         if held != ctx.held {
             ctx.held = held;
             solver.restart()?;
@@ -147,7 +127,7 @@ pub fn run(
         }
         let mut t = t0;
         loop {
-            let t_event = digital.next_event(&p.hbridge).min(outer.next_event(&p.loops));
+            let t_event = sampled.next_event(&model);
             let fire = t_event <= t1 + slack;
             let end = if fire { t_event.min(t1) } else { t1 };
             // An event within rounding of the current time happens there.
@@ -158,20 +138,13 @@ pub fn run(
             if !fire {
                 break;
             }
-            let y = solver.state();
-            if outer.next_event(&p.loops) <= digital.next_event(&p.hbridge) {
-                let measured = if p.loops.mode == ControlMode::Flow { p.k3 * y[XS] } else { y[X] };
-                outer.sample(&p.loops, reference, measured);
-                ctx.held.i_cmd = command(&outer);
-            } else {
-                digital.fire(&p.hbridge, y[I], ctx.held.i_cmd, p.r_total, rail);
-                ctx.held.u_bridge = digital.output(rail);
-            }
+            let y: &[f64; NY] = solver.state().try_into().unwrap();
+            sampled.fire(&model, y, reference, i_ref, &mut ctx.held);
             solver.restart()?;
             restarts += 1;
         }
         let y: &[f64; NY] = solver.state().try_into().unwrap();
-        trace.push(outputs(&p, &ctx.held, y));
+        trace.push(outputs(&model, &ctx.held, y));
     }
     let (wall, cpu) = clock.read();
     let counters = solver.counters();
@@ -180,22 +153,20 @@ pub fn run(
 }
 
 /// The recorded outputs at `y` (`workloads::OUTPUTS` order).
-fn outputs(p: &Params, held: &Held, y: &[f64; NY]) -> [f64; 12] {
-    let cylinder = CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] };
-    let c = hydraulics::outputs(&p.cylinder, &cylinder, y[XS], held.p_supply);
-    let u = rhs::driver_voltage(p, held, y);
+fn outputs(model: &WholeModel, held: &Held, y: &[f64; NY]) -> [f64; 12] {
+    let o = model.outputs(held, y);
     [
-        y[I],
-        u,
-        y[XF],
-        y[XS],
-        p.k3 * y[XS],
-        c.q_a,
-        c.q_b,
-        c.p_a,
-        c.p_b,
-        c.x_piston,
-        c.v_piston,
-        c.f_hydraulic,
+        o.i_coil,
+        o.u_driver,
+        o.x_flapper,
+        o.x_spool,
+        o.q_valve,
+        o.q_a,
+        o.q_b,
+        o.p_a,
+        o.p_b,
+        o.x_piston,
+        o.v_piston,
+        o.f_hydraulic,
     ]
 }

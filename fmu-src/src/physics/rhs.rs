@@ -1,0 +1,254 @@
+//! The whole model as one explicit right-hand side `dy = f(y, held inputs)`, built from the
+//! component functions the FMU itself integrates: the coil and valve rows of the mode
+//! matrices (`coil::coil_rows`, `valve::valve_rows`), the PI coefficients of the driver and
+//! `cylinder::derivatives`. It is there for an independent integration of the same
+//! equations by a general ODE solver (the benchmark's CVODE peer, reference runs), so
+//! that the model is transcribed once.
+//!
+//! Where the FMU switches exactly between driver modes, a smooth ODE cannot: here the PI
+//! driver's output is a state that tracks its clamped target `clamp(Kp e + ui, +-rail)` at
+//! the rate [`TRACKING`] (10 ns behind), limited to +-slew rate, and the integrator stops
+//! while the output rests on a rail with the error pushing further (anti-windup). The
+//! valve travel stops are not represented ([`WholeModel::new`] refuses them), nor the
+//! ideal current source (an algebraic current).
+//!
+//! The digital parts (H-bridge PWM and PI, outer PID) are the FMU's own, behind
+//! [`Sampled`]: they change the held inputs at their time events.
+
+use super::cylinder::{self, CylinderState};
+use super::driver::Mode;
+use super::hbridge::Digital;
+use super::outer_loop::OuterLoop;
+use super::rosenbrock::STATE_SCALE;
+use super::state::{self, Mat, Vector};
+use super::{coil, valve, Coefficients, ControlMode, DriverKind, Outputs, Params};
+use crate::variables::N_VARIABLES;
+
+/// State size: coil current, PI integrator output, driver output, flapper position and
+/// velocity, spool, chamber pressures A and B, piston position and velocity.
+pub const NY: usize = 10;
+pub const I: usize = 0;
+pub const UI: usize = 1;
+pub const U: usize = 2;
+pub const XF: usize = 3;
+pub const VF: usize = 4;
+pub const XS: usize = 5;
+pub const PA: usize = 6;
+pub const PB: usize = 7;
+pub const X: usize = 8;
+pub const V: usize = 9;
+
+/// Rate at which the PI driver's output follows its clamped target (1/s).
+pub const TRACKING: f64 = 1e8;
+
+/// Inputs and discrete outputs held between time events.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Held {
+    /// Coil current command (i_ref, or the outer loop's output) (A).
+    pub i_cmd: f64,
+    /// Driver rail V_supply - V_drop (V).
+    pub rail: f64,
+    /// H-bridge output between switching instants (V) (other drivers: unused).
+    pub u_bridge: f64,
+    pub p_supply: f64,
+    pub f_ext: f64,
+}
+
+/// The model's coefficients in the form the right-hand side uses (derived once).
+#[derive(Clone, Copy, Debug)]
+pub struct WholeModel {
+    c: Coefficients,
+    /// Coil and valve rows of `z' = A z` (augmented state of [`state`]); driver rows zero.
+    coil_valve: Mat,
+}
+
+impl WholeModel {
+    /// For `params`; refuses what the smooth form does not represent.
+    pub fn new(params: &Params) -> Result<WholeModel, String> {
+        let c = Coefficients::new(params)?;
+        if valve::has_stops(&c) {
+            return Err("the whole-model right-hand side has no valve travel stops".into());
+        }
+        if c.driver == DriverKind::IdealCurrent {
+            return Err("the whole-model right-hand side has no ideal current source".into());
+        }
+        let mut coil_valve = Mat::zeros();
+        coil::coil_rows(&c, Mode::Linear, &mut coil_valve);
+        valve::valve_rows(&c, &mut coil_valve);
+        Ok(WholeModel { c, coil_valve })
+    }
+
+    /// From a value array (every variable in value-reference order), parameters checked.
+    pub fn from_values(values: &[f64; N_VARIABLES]) -> Result<WholeModel, String> {
+        WholeModel::new(&crate::model::params(values)?)
+    }
+
+    pub fn driver(&self) -> DriverKind {
+        self.c.driver
+    }
+
+    pub fn control_mode(&self) -> ControlMode {
+        self.c.loops.mode
+    }
+
+    /// The driver rail for a supply voltage (V).
+    pub fn rail(&self, v_supply: f64) -> f64 {
+        super::driver::rail(&self.c, v_supply)
+    }
+
+    /// Coil resistance plus sense resistor (Ohm).
+    pub fn r_total(&self) -> f64 {
+        self.c.r_total
+    }
+
+    /// The driver's output voltage at `y`.
+    pub fn driver_voltage(&self, held: &Held, y: &[f64; NY]) -> f64 {
+        match self.c.driver {
+            DriverKind::HBridge => held.u_bridge,
+            DriverKind::Voltage => (self.c.r_total * held.i_cmd).clamp(-held.rail, held.rail),
+            _ => y[U],
+        }
+    }
+
+    /// `dy = f(y)` for the held inputs.
+    pub fn rhs(&self, held: &Held, y: &[f64; NY], dy: &mut [f64; NY]) {
+        let c = &self.c;
+        let u = self.driver_voltage(held, y);
+        let mut z = Vector::zeros();
+        z[state::I] = y[I];
+        z[state::UI] = y[UI];
+        z[state::U] = u;
+        z[state::XF] = y[XF];
+        z[state::VF] = y[VF];
+        z[state::XS] = y[XS];
+        z[state::IREF] = held.i_cmd;
+        z[state::VMAX] = held.rail;
+        z[state::ONE] = 1.0;
+        let dz = self.coil_valve * z;
+        dy[I] = dz[state::I];
+        dy[XF] = dz[state::XF];
+        dy[VF] = dz[state::VF];
+        dy[XS] = dz[state::XS];
+        if matches!(c.driver, DriverKind::OpampPi | DriverKind::Industrial) {
+            let e = held.i_cmd - y[I];
+            let u_lin = c.kp * e + y[UI];
+            let pull = TRACKING * (u_lin.clamp(-held.rail, held.rail) - y[U]);
+            let slewing = pull.abs() > c.slew_rate;
+            let frozen =
+                !slewing && ((u_lin >= held.rail && e > 0.0) || (u_lin <= -held.rail && e < 0.0));
+            dy[UI] = if frozen { 0.0 } else { c.ki * e };
+            dy[U] = pull.clamp(-c.slew_rate, c.slew_rate);
+        } else {
+            dy[UI] = 0.0;
+            dy[U] = 0.0;
+        }
+        let cyl = CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] };
+        let d = cylinder::derivatives(&c.cylinder, &cyl, y[XS], held.p_supply, held.f_ext);
+        dy[PA..].copy_from_slice(&d);
+    }
+
+    /// Absolute error scales of the states (a solver's atol is `rtol` times these): the
+    /// cylinder's are the FMU's own Rosenbrock weights; the valve's follow 10 mA of current.
+    pub fn error_scales(&self) -> [f64; NY] {
+        let c = &self.c;
+        let i = 1e-2;
+        let xf = c.k1 * i / c.kf;
+        let [pa, pb, x, v] = STATE_SCALE;
+        [i, 100.0, 100.0, xf, xf * c.wn, c.k1 * i / c.kw, pa, pb, x, v]
+    }
+
+    /// The outputs at `y`.
+    pub fn outputs(&self, held: &Held, y: &[f64; NY]) -> Outputs {
+        let c = &self.c;
+        let cyl = CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] };
+        let h = cylinder::outputs(&c.cylinder, &cyl, y[XS], held.p_supply);
+        let u = self.driver_voltage(held, y);
+        Outputs {
+            i_coil: y[I],
+            u_driver: u,
+            driver_saturated: u.abs() >= held.rail,
+            x_flapper: y[XF],
+            x_spool: y[XS],
+            q_valve: valve::no_load_flow(c, y[XS]),
+            q_a: h.q_a,
+            q_b: h.q_b,
+            p_a: h.p_a,
+            p_b: h.p_b,
+            x_piston: h.x_piston,
+            v_piston: h.v_piston,
+            f_hydraulic: h.f_hydraulic,
+        }
+    }
+}
+
+/// The digital parts (H-bridge PWM and digital PI, outer flow/position PID): the FMU's own.
+#[derive(Clone, Copy, Debug)]
+pub struct Sampled {
+    digital: Digital,
+    outer: OuterLoop,
+}
+
+impl Sampled {
+    /// Settled at `start_time` on the outer loop's `reference`, the bridge holding the
+    /// equilibrium voltage `R i_coil` on average.
+    pub fn at_start(
+        model: &WholeModel,
+        i_coil: f64,
+        rail: f64,
+        reference: f64,
+        start: f64,
+    ) -> Self {
+        let c = &model.c;
+        let digital = if c.driver == DriverKind::HBridge {
+            let u = (c.r_total * i_coil).clamp(-rail, rail);
+            Digital::at_equilibrium(&c.hbridge, u, u, rail, start)
+        } else {
+            Digital::default()
+        };
+        Sampled { digital, outer: OuterLoop::at_start(&c.loops, reference, start) }
+    }
+
+    /// Time of the next sampling or switching instant (infinite without digital parts).
+    pub fn next_event(&self, model: &WholeModel) -> f64 {
+        let c = &model.c;
+        self.digital.next_event(&c.hbridge).min(self.outer.next_event(&c.loops))
+    }
+
+    /// The coil current command for the input `i_ref`.
+    pub fn command(&self, model: &WholeModel, i_ref: f64) -> f64 {
+        if model.c.loops.mode == ControlMode::Current {
+            i_ref
+        } else {
+            self.outer.command
+        }
+    }
+
+    /// The bridge output for `rail` (V).
+    pub fn bridge_output(&self, rail: f64) -> f64 {
+        self.digital.output(rail)
+    }
+
+    /// Handles the next instant at state `y` (the outer loop first at equal times, as the
+    /// FMU does) and updates `held`; `reference` is Q_ref or x_ref, `i_ref` the input.
+    pub fn fire(
+        &mut self,
+        model: &WholeModel,
+        y: &[f64; NY],
+        reference: f64,
+        i_ref: f64,
+        held: &mut Held,
+    ) {
+        let c = &model.c;
+        if self.outer.next_event(&c.loops) <= self.digital.next_event(&c.hbridge) {
+            let measured = match c.loops.mode {
+                ControlMode::Flow => valve::no_load_flow(c, y[XS]),
+                _ => y[X],
+            };
+            self.outer.sample(&c.loops, reference, measured);
+            held.i_cmd = self.command(model, i_ref);
+        } else {
+            self.digital.fire(&c.hbridge, y[I], held.i_cmd, c.r_total, held.rail);
+            held.u_bridge = self.digital.output(held.rail);
+        }
+    }
+}
