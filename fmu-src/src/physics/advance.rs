@@ -70,7 +70,8 @@ impl Physics {
             let fire = t_event <= t_end + slack;
             let segment_end = if fire { t_event.min(t_end) } else { t_end };
             if segment_end > t {
-                self.evolve(segment_end - t, &inputs, &mut events)?;
+                let whole = t == t_start && segment_end == t_end;
+                self.evolve(segment_end - t, whole, &inputs, &mut events)?;
                 t = segment_end;
             }
             if !fire {
@@ -180,10 +181,12 @@ impl Physics {
         Ok(())
     }
 
-    /// Continuous evolution over `span` seconds with state events (driver mode changes).
+    /// Continuous evolution over `span` seconds with state events (driver mode changes);
+    /// `whole`: the span is a whole communication step (no time event cut it).
     fn evolve(
         &mut self,
         span_total: f64,
+        whole: bool,
         inputs: &Held,
         events: &mut StepEvents,
     ) -> Result<(), String> {
@@ -211,7 +214,7 @@ impl Physics {
             let propagator = if self.mode == Mode::Switched {
                 None
             } else {
-                Some(self.cache.get(key, sys, span)?)
+                Some(self.cache.get(key, sys, span, whole && done == 0.0)?)
             };
             let (substeps, h) = propagator.as_ref().map_or((1, span), |p| (p.substeps, p.h));
             for k in 0..substeps {

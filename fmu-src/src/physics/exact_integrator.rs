@@ -151,19 +151,22 @@ impl PropagatorCache {
         }
     }
 
-    /// `system` names the (mode, stops) pair of `sys`.
+    /// `system` names the (mode, stops) pair of `sys`. `exact`: key the sub-step by all
+    /// its bits (whole communication steps: they repeat exactly, and a settled state then
+    /// maps onto itself bit for bit, which lets `evolve` skip it).
     pub(crate) fn get(
         &mut self,
         system: usize,
         sys: &ModeSystem,
         span: f64,
+        exact: bool,
     ) -> Result<Propagator<'_>, String> {
         let substeps = sys.substeps(span, THETA_COARSE);
         let h = span / substeps as f64;
         if h * sys.radius <= TAYLOR_ONLY {
             return Ok(Propagator { substeps, h, matrix: None, rest: 0.0 });
         }
-        let key_h = key_span(h);
+        let key_h = if exact { h } else { key_span(h) };
         let key = (system, key_h.to_bits());
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
