@@ -23,7 +23,11 @@ impl Physics {
             self.cylinder_memory,
             self.p_supply,
         );
-        let result = self.advance_inner(inputs, t_start, step);
+        // A piston through the end of the cylinder is a broken state, refused like any error.
+        let result = self.advance_inner(inputs, t_start, step).and_then(|events| {
+            cylinder::check_inside(&self.params.cylinder, &self.cylinder)?;
+            Ok(events)
+        });
         if result.is_err() {
             (
                 self.z,

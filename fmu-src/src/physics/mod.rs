@@ -342,10 +342,9 @@ impl Physics {
 }
 
 impl Physics {
-    /// One communication step: [`Physics::advance`] with the cylinder's checks around it.
-    /// Refuses, leaving the state as it was, a supply at or above the relief valves'
-    /// setting and a step that ends with the piston through the end of the cylinder;
-    /// reports relief valves that opened.
+    /// One communication step: [`Physics::advance`] (which refuses, leaving the state as it
+    /// was, a step that ends with the piston through the end of the cylinder) after refusing a
+    /// supply at or above the relief valves' setting; reports relief valves that opened.
     pub(crate) fn step(
         &mut self,
         inputs: &Inputs,
@@ -355,33 +354,7 @@ impl Physics {
         let c = &self.params.cylinder;
         c.check_supply(inputs.p_supply)?;
         let relief_before = cylinder::relief_open(c, &self.cylinder);
-        let saved = (
-            self.z,
-            self.mode,
-            self.stops,
-            self.digital,
-            self.outer,
-            self.cylinder,
-            self.cylinder_memory,
-            self.p_supply,
-        );
         let mut events = self.advance(inputs, t_start, step)?;
-        if let Err(e) = cylinder::check_inside(&self.params.cylinder, &self.cylinder) {
-            // As `advance` does on its own errors.
-            (
-                self.z,
-                self.mode,
-                self.stops,
-                self.digital,
-                self.outer,
-                self.cylinder,
-                self.cylinder_memory,
-                self.p_supply,
-            ) = saved;
-            self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
-            self.cylinder_rest = None;
-            return Err(e);
-        }
         let relief_after = cylinder::relief_open(&self.params.cylinder, &self.cylinder);
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);
         Ok(events)
