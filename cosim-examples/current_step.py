@@ -9,27 +9,24 @@ value, and writes out/current_step.png (i_coil in mA and u_driver in V against m
     .venv/bin/python cosim-examples/current_step.py [--fmi3] [--step-mA 5] [--out PATH]
 """
 
-import argparse
 import sys
 from pathlib import Path
 
 import numpy as np
 
 import ehsv
+from ehsv import cli
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--fmi3", action="store_true", help="use the FMI 3.0 archive")
+    ap = cli.parser(__doc__)
     ap.add_argument("--step-mA", type=float, default=5.0, help="i_ref step size in mA (default 5)")
     ap.add_argument("--supply", type=float, default=72.0, help="V_supply in V (default 72)")
-    ap.add_argument("--out", type=Path, default=ehsv.REPO / "out" / "current_step.png")
+    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / "current_step.png")
     args = ap.parse_args(argv)
 
-    version = "fmi3" if args.fmi3 else "fmi2"
-    msg = ehsv.missing_fmu_message(version)
-    if msg:
-        print(msg, file=sys.stderr)
+    version = cli.version(args)
+    if cli.archive_missing(version):
         return 1
 
     h = 1e-6  # communication step = output interval, 1 us

@@ -13,25 +13,21 @@ against time (ms).
     .venv/bin/python cosim-examples/driver_comparison.py [--fmi3] [--out PATH] [--t-max-ms 8]
 """
 
-import argparse
 import sys
 from pathlib import Path
 
 import ehsv
-from ehsv import paper_plots
+from ehsv import cli, paper_plots
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--fmi3", action="store_true", help="use the FMI 3.0 archive")
-    ap.add_argument("--out", type=Path, default=ehsv.REPO / "out" / "driver_comparison.png")
+    ap = cli.parser(__doc__)
+    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / "driver_comparison.png")
     ap.add_argument("--t-max-ms", type=float, default=8.0, help="time axis of the figure (default 8 ms)")
     args = ap.parse_args(argv)
 
-    version = "fmi3" if args.fmi3 else "fmi2"
-    msg = ehsv.missing_fmu_message(version)
-    if msg:
-        print(msg, file=sys.stderr)
+    version = cli.version(args)
+    if cli.archive_missing(version):
         return 1
 
     results = ehsv.compare_drivers(version)
@@ -46,8 +42,7 @@ def main(argv=None) -> int:
     print(f"H-bridge ripple at the end: {hb.ripple * 1e3:.4f} mA peak to peak")
 
     fig = paper_plots.fig14_16_drivers(results, version, args.t_max_ms)
-    ehsv.save_figure(fig, args.out)
-    print(f"figure: {args.out}")
+    cli.write_figure(fig, args.out)
     return 0
 
 

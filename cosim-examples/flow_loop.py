@@ -12,24 +12,20 @@ u_driver and the chamber pressures against time for both supplies.
     .venv/bin/python cosim-examples/flow_loop.py [--fmi3] [--out PATH]
 """
 
-import argparse
 import sys
 from pathlib import Path
 
 import ehsv
-from ehsv import paper_plots
+from ehsv import cli, paper_plots
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--fmi3", action="store_true", help="use the FMI 3.0 archive")
-    ap.add_argument("--out", type=Path, default=ehsv.REPO / "out" / "flow_loop.png")
+    ap = cli.parser(__doc__)
+    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / "flow_loop.png")
     args = ap.parse_args(argv)
 
-    version = "fmi3" if args.fmi3 else "fmi2"
-    msg = ehsv.missing_fmu_message(version)
-    if msg:
-        print(msg, file=sys.stderr)
+    version = cli.version(args)
+    if cli.archive_missing(version):
         return 1
 
     results = ehsv.compare_flow_supplies(version)
@@ -41,8 +37,7 @@ def main(argv=None) -> int:
     print(ehsv.flow_table(results))
 
     fig = paper_plots.fig10_11_flow_loop(results, version)
-    ehsv.save_figure(fig, args.out)
-    print(f"figure: {args.out}")
+    cli.write_figure(fig, args.out)
     return 0
 
 

@@ -21,7 +21,6 @@ curve is one task on dask.distributed (LocalCluster by default, one worker per c
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from pathlib import Path
@@ -29,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import ehsv
-from ehsv import cluster
+from ehsv import cli, cluster
 from ehsv import frequency as fr
 
 SUPPLIES = (72.0, 24.0, 10.0)
@@ -257,22 +256,11 @@ def onset_figure(onsets: list[dict], out: Path) -> None:
     amps = np.geomspace(0.5e-3, 12e-3, 200)
     for v, color in zip(SUPPLIES, ("tab:blue", "tab:orange", "tab:red"), strict=True):
         a = amps[[feasible(v, x) for x in amps]]
-        ax.loglog(
-            a * 1e3,
-            [fr.loop_rail_limit(v, x) for x in a],
-            "-",
-            color=color,
-            lw=1,
-            label=f"{v:g} V: PI loop at the rail",
-        )
-        ax.loglog(
-            a * 1e3,
-            [fr.slew_limit(v, x) for x in a],
-            ":",
-            color=color,
-            lw=1,
-            label=f"{v:g} V: (V - R A)/(2 pi L A)",
-        )
+        for limit, style, what in (
+            (fr.loop_rail_limit, "-", "PI loop at the rail"),
+            (fr.slew_limit, ":", "(V - R A)/(2 pi L A)"),
+        ):
+            ax.loglog(a * 1e3, [limit(v, x) for x in a], style, color=color, lw=1, label=f"{v:g} V: {what}")
         pts = [o for o in onsets if o["V_supply"] == v]
         ax.loglog(
             [o["amplitude"] * 1e3 for o in pts],
@@ -293,19 +281,16 @@ def onset_figure(onsets: list[dict], out: Path) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--fmi3", action="store_true", help="use the FMI 3.0 archive")
+    ap = cli.parser(__doc__)
     ap.add_argument("--quick", action="store_true", help="fewer frequencies (a smoke run)")
     ap.add_argument("--scheduler", help="address or scheduler file of a running dask cluster")
     ap.add_argument("--workers", type=int, help="LocalCluster workers (default: one per core)")
     ap.add_argument("--serial", action="store_true", help="run in this process, no dask")
     ap.add_argument("--no-progress", action="store_true")
-    ap.add_argument("--out-dir", type=Path, default=ehsv.REPO / "out")
+    ap.add_argument("--out-dir", type=Path, default=cli.OUT_DIR)
     args = ap.parse_args(argv)
-    version = "fmi3" if args.fmi3 else "fmi2"
-    missing = ehsv.missing_fmu_message(version)
-    if missing:
-        print(missing, file=sys.stderr)
+    version = cli.version(args)
+    if cli.archive_missing(version):
         return 1
 
     per_decade = 2 if args.quick else 4

@@ -14,23 +14,19 @@ The README's gallery is this command with --out-dir docs/gallery.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import ehsv
-from ehsv import paper_plots
+from ehsv import cli, paper_plots
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--fmi3", action="store_true", help="use the FMI 3.0 archive")
-    ap.add_argument("--out-dir", type=Path, default=ehsv.REPO / "out")
+    ap = cli.parser(__doc__)
+    ap.add_argument("--out-dir", type=Path, default=cli.OUT_DIR)
     args = ap.parse_args(argv)
-    version = "fmi3" if args.fmi3 else "fmi2"
-    missing = ehsv.missing_fmu_message(version)
-    if missing:
-        print(missing, file=sys.stderr)
+    version = cli.version(args)
+    if cli.archive_missing(version):
         return 1
     out = args.out_dir
     step = ehsv.PAPER_STEP
@@ -51,8 +47,7 @@ def main(argv=None) -> int:
     )
     figs["fig14_16_drivers.png"] = paper_plots.fig14_16_drivers(ehsv.compare_drivers(version), version)
     for name, fig in figs.items():
-        ehsv.save_figure(fig, out / name)
-        print(f"figure: {out / name}")
+        cli.write_figure(fig, out / name)
     return 0
 
 

@@ -29,7 +29,7 @@ from pathlib import Path
 import pandas as pd
 
 import ehsv
-from ehsv import cluster, study
+from ehsv import cli, cluster, study
 
 DEFAULT_VARY = ["driver=opamp_pi,hbridge_pid,industrial", "V_supply=12:72"]
 DEFAULT_POINTS = 12
@@ -69,8 +69,8 @@ def parse_args(argv=None):
         help="time the design serially, on 1 and on 2 LocalCluster workers",
     )
     ap.add_argument("--no-progress", action="store_true")
-    ap.add_argument("--out", type=Path, default=ehsv.REPO / "out" / "sweep.parquet")
-    ap.add_argument("--figure", type=Path, default=ehsv.REPO / "out" / "sweep.png")
+    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / "sweep.parquet")
+    ap.add_argument("--figure", type=Path, default=cli.OUT_DIR / "sweep.png")
     return ap.parse_args(argv)
 
 
@@ -82,7 +82,7 @@ def study_points(args) -> list[dict]:
         kind=args.design,
         seed=args.seed,
         scenario=args.scenario,
-        version="fmi3" if args.fmi3 else "fmi2",
+        version=cli.version(args),
         metrics=metrics,
         h=args.h,
         t_stop=args.t_stop,
@@ -157,10 +157,8 @@ def figure(df: pd.DataFrame, metric: str, out: Path) -> None:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    version = "fmi3" if args.fmi3 else "fmi2"
-    missing = ehsv.missing_fmu_message(version)
-    if missing:
-        print(missing, file=sys.stderr)
+    version = cli.version(args)
+    if cli.archive_missing(version):
         return 1
     points = study_points(args)
     progress = not args.no_progress
