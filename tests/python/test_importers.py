@@ -119,35 +119,40 @@ def test_libcosimpy(fmu, version):
     assert_agree("libcosimpy", reference(version), {o: table[:, j] for j, o in enumerate(OUTPUTS)})
 
 
-@pytest.fixture(scope="module")
-def containers(fmu, tmp_path_factory):
-    """The archive wrapped by fmucontainer, as an FMI 2.0 and an FMI 3.0 container."""
+def fmucontainer() -> Path:
+    """The fmucontainer command installed beside this Python; skips the test without it."""
     tool = Path(sys.executable).with_name("fmucontainer")
     if not tool.exists():
         pytest.skip(f"{tool} not installed (fmu-manipulation-toolbox)")
+    return tool
+
+
+def build_container(tool, work, name, rules, fmi, *options):
+    """fmucontainer run in ``work`` (which holds the FMUs the CSV ``rules`` name) on
+    ``name``.csv with the step H: the FMI ``fmi`` container archive and the tool's log."""
+    csv = work / f"{name}.csv"
+    csv.write_text("\n".join(["rule;from_fmu;from_port;to_fmu;to_port", *rules]) + "\n")
+    proc = subprocess.run(
+        [str(tool), "-container", f"{csv.name}:{H}", "-fmi", fmi, "-fmu-directory", str(work), *options],
+        cwd=work,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    out = csv.with_suffix(".fmu")
+    assert proc.returncode == 0 and out.exists(), f"fmucontainer failed:\n{proc.stdout}\n{proc.stderr}"
+    return out, proc.stdout + proc.stderr
+
+
+@pytest.fixture(scope="module")
+def containers(fmu, tmp_path_factory):
+    """The archive wrapped by fmucontainer, as an FMI 2.0 and an FMI 3.0 container."""
+    tool = fmucontainer()
     work = tmp_path_factory.mktemp("container")
     shutil.copy(fmu, work / fmu.name)
-    built = {}
-    for fmi in ("2", "3"):
-        csv = work / f"ehsv_container_fmi{fmi}.csv"
-        lines = [
-            "rule;from_fmu;from_port;to_fmu;to_port",
-            f"FMU;{fmu.name};;;",
-            f"INPUT;;i_ref;{fmu.name};i_ref",
-        ]
-        lines += [f"OUTPUT;{fmu.name};{o};;{o}" for o in OUTPUTS]
-        csv.write_text("\n".join(lines) + "\n")
-        proc = subprocess.run(
-            [str(tool), "-container", f"{csv.name}:{H}", "-fmi", fmi, "-fmu-directory", str(work)],
-            cwd=work,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-        out = csv.with_suffix(".fmu")
-        assert proc.returncode == 0 and out.exists(), f"fmucontainer failed:\n{proc.stdout}\n{proc.stderr}"
-        built[fmi] = out
-    return built
+    rules = [f"FMU;{fmu.name};;;", f"INPUT;;i_ref;{fmu.name};i_ref"]
+    rules += [f"OUTPUT;{fmu.name};{o};;{o}" for o in OUTPUTS]
+    return {fmi: build_container(tool, work, f"ehsv_container_fmi{fmi}", rules, fmi)[0] for fmi in ("2", "3")}
 
 
 def step_fmi2_by_hand(path, outputs=OUTPUTS, i_ref_input=True, n=N):
@@ -325,47 +330,24 @@ def build_controller(directory):
 def loop_containers(fmu, tmp_path_factory):
     """The archive and the P controller in one container per FMI version, the loop
     x_piston -> controller -> i_ref closed by LINK rules; also fmucontainer's log."""
-    tool = Path(sys.executable).with_name("fmucontainer")
-    if not tool.exists():
-        pytest.skip(f"{tool} not installed (fmu-manipulation-toolbox)")
+    tool = fmucontainer()
     if sys.platform != "linux":
         pytest.skip("the controller FMU is built for linux64 only")
     work = tmp_path_factory.mktemp("loop")
     shutil.copy(fmu, work / fmu.name)
     controller = build_controller(work)
+    rules = [
+        f"FMU;{fmu.name};;;",
+        f"FMU;{controller.name};;;",
+        f"LINK;{fmu.name};x_piston;{controller.name};x",
+        f"LINK;{controller.name};i_cmd;{fmu.name};i_ref",
+        f"OUTPUT;{fmu.name};x_piston;;x_piston",
+        f"OUTPUT;{fmu.name};i_coil;;i_coil",
+        f"OUTPUT;{controller.name};i_cmd;;i_cmd",
+    ]
     built, logs = {}, {}
     for fmi in ("2", "3"):
-        csv = work / f"loop_fmi{fmi}.csv"
-        rows = [
-            "rule;from_fmu;from_port;to_fmu;to_port",
-            f"FMU;{fmu.name};;;",
-            f"FMU;{controller.name};;;",
-            f"LINK;{fmu.name};x_piston;{controller.name};x",
-            f"LINK;{controller.name};i_cmd;{fmu.name};i_ref",
-            f"OUTPUT;{fmu.name};x_piston;;x_piston",
-            f"OUTPUT;{fmu.name};i_coil;;i_coil",
-            f"OUTPUT;{controller.name};i_cmd;;i_cmd",
-        ]
-        csv.write_text("\n".join(rows) + "\n")
-        proc = subprocess.run(
-            [
-                str(tool),
-                "-container",
-                f"{csv.name}:{H}",
-                "-fmi",
-                fmi,
-                "-fmu-directory",
-                str(work),
-                "-no-auto-output",
-            ],
-            cwd=work,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-        out = csv.with_suffix(".fmu")
-        assert proc.returncode == 0 and out.exists(), f"fmucontainer failed:\n{proc.stdout}\n{proc.stderr}"
-        built[fmi], logs[fmi] = out, proc.stdout + proc.stderr
+        built[fmi], logs[fmi] = build_container(tool, work, f"loop_fmi{fmi}", rules, fmi, "-no-auto-output")
     return built, logs
 
 
