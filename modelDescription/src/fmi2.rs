@@ -100,18 +100,8 @@ struct ModelVariables {
 
 #[derive(Serialize)]
 struct ScalarVariable {
-    #[serde(rename = "@name")]
-    name: &'static str,
-    #[serde(rename = "@valueReference")]
-    value_reference: u32,
-    #[serde(rename = "@description")]
-    description: &'static str,
-    #[serde(rename = "@causality")]
-    causality: &'static str,
-    #[serde(rename = "@variability")]
-    variability: &'static str,
-    #[serde(rename = "@initial", skip_serializing_if = "Option::is_none")]
-    initial: Option<&'static str>,
+    #[serde(flatten)]
+    common: Common,
     /// The type element (`<Real>`, `<Boolean>`, `<Enumeration>`), named by the variant.
     #[serde(rename = "$value")]
     value: TypedValue,
@@ -188,15 +178,7 @@ fn scalar_variable(value_reference: u32, v: &'static Variable) -> ScalarVariable
             max: integer_bound(v.max),
         },
     };
-    ScalarVariable {
-        name: v.name,
-        value_reference,
-        description: v.description,
-        causality: causality_name(v.causality),
-        variability: variability_name(v.variability),
-        initial: initial_name(v),
-        value,
-    }
+    ScalarVariable { common: Common::new(value_reference, v), value }
 }
 
 /// ModelVariables lists the table in order, so the 1-based index is position + 1.

@@ -97,23 +97,6 @@ struct ModelVariables {
     variables: Vec<ModelVariable>,
 }
 
-/// Attributes every variable element has.
-#[derive(Serialize)]
-struct Common {
-    #[serde(rename = "@name")]
-    name: &'static str,
-    #[serde(rename = "@valueReference")]
-    value_reference: u32,
-    #[serde(rename = "@description")]
-    description: &'static str,
-    #[serde(rename = "@causality")]
-    causality: &'static str,
-    #[serde(rename = "@variability")]
-    variability: &'static str,
-    #[serde(rename = "@initial", skip_serializing_if = "Option::is_none")]
-    initial: Option<&'static str>,
-}
-
 #[derive(Serialize)]
 enum ModelVariable {
     Float64 {
@@ -168,14 +151,7 @@ struct Unknown {
 }
 
 fn model_variable(value_reference: u32, v: &'static Variable) -> ModelVariable {
-    let common = Common {
-        name: v.name,
-        value_reference,
-        description: v.description,
-        causality: causality_name(v.causality),
-        variability: variability_name(v.variability),
-        initial: initial_name(v),
-    };
+    let common = Common::new(value_reference, v);
     match v.ty {
         VarType::Real => ModelVariable::Float64 {
             common,

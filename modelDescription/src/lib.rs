@@ -215,6 +215,36 @@ struct DefaultExperiment {
 const DEFAULT_EXPERIMENT: DefaultExperiment =
     DefaultExperiment { start_time: START_TIME, stop_time: STOP_TIME, step_size: STEP_SIZE };
 
+/// Attributes every variable element has (FMI 2 `ScalarVariable`, FMI 3 `Float64`, ...).
+#[derive(Serialize)]
+pub(crate) struct Common {
+    #[serde(rename = "@name")]
+    name: &'static str,
+    #[serde(rename = "@valueReference")]
+    value_reference: u32,
+    #[serde(rename = "@description")]
+    description: &'static str,
+    #[serde(rename = "@causality")]
+    causality: &'static str,
+    #[serde(rename = "@variability")]
+    variability: &'static str,
+    #[serde(rename = "@initial", skip_serializing_if = "Option::is_none")]
+    initial: Option<&'static str>,
+}
+
+impl Common {
+    fn new(value_reference: u32, v: &'static Variable) -> Common {
+        Common {
+            name: v.name,
+            value_reference,
+            description: v.description,
+            causality: causality_name(v.causality),
+            variability: variability_name(v.variability),
+            initial: initial_name(v),
+        }
+    }
+}
+
 fn causality_name(c: Causality) -> &'static str {
     match c {
         Causality::Independent => "independent",

@@ -62,51 +62,27 @@ pub(crate) const V: usize = 3;
 pub(crate) type Vec4 = [f64; N_STATES];
 pub(crate) type Mat4 = [[f64; N_STATES]; N_STATES];
 
-/// Physical parameters of valve ports, cylinder and load, in SI (pressures gauge).
+/// Physical parameters of valve ports, cylinder and load, in SI (pressures gauge): the
+/// cylinder, load and fluid as the model gives them (reached through `Deref`) and the
+/// valve's metering-port data.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct CylinderParams {
-    /// Piston (bore) diameter (m).
-    pub bore: f64,
-    /// Rod diameter (m); the rod is on the B side.
-    pub rod: f64,
-    /// Full stroke (m); x runs from -stroke/2 to +stroke/2.
-    pub stroke: f64,
-    /// Moving mass: piston, rod and load (kg).
-    pub mass: f64,
-    /// Effective bulk modulus of oil, hoses and walls (Pa).
-    pub beta: f64,
-    /// Dead volume per chamber at its end of stroke (m3).
-    pub v_dead: f64,
-    pub b_viscous: f64,
-    pub f_coulomb: f64,
-    /// Breakaway force (peak of the Stribeck curve) (N).
-    pub f_static: f64,
-    pub v_stribeck: f64,
-    /// Velocity scale of the tanh that replaces sign(v) in the Coulomb/Stribeck term (m/s).
-    pub v_friction_smooth: f64,
-    pub k_endstop: f64,
-    pub c_endstop: f64,
-    /// Internal (cross-piston) leakage A -> B per pressure difference (m3/(s.Pa)).
-    pub c_leak: f64,
-    /// External leakage from each chamber to the drain (at p_tank) (m3/(s.Pa)).
-    pub c_leak_external: f64,
+    /// Cylinder, load, leakage and fluid.
+    pub load: CylinderLoadParams,
     /// Spool/bushing flow gain K3 (the same value as the valve's `valve.K3`) (m2/s).
     pub k3: f64,
     /// Total rated valve pressure drop at which the no-load flow is K3*x_s (Pa).
     pub dp_rated: f64,
     /// Port pressure drop below which the orifice law turns laminar (regularisation) (Pa).
     pub dp_laminar: f64,
-    pub p_tank: f64,
-    /// Lowest chamber pressure (gauge) (Pa).
-    pub p_cavitation: f64,
-    /// Band above the floor over which an emptying chamber's bulk modulus fades out (Pa).
-    pub dp_cavitation_band: f64,
-    /// Relief valves (chamber to tank): cracking pressure above tank, 0 = none (Pa).
-    pub relief_p_crack: f64,
-    /// Rise above cracking at which a relief valve passes `relief_q_rated` (Pa).
-    pub relief_dp_override: f64,
-    /// Rated flow of a relief valve (m3/s).
-    pub relief_q_rated: f64,
+}
+
+impl std::ops::Deref for CylinderParams {
+    type Target = CylinderLoadParams;
+
+    fn deref(&self) -> &CylinderLoadParams {
+        &self.load
+    }
 }
 
 #[cfg(test)]
@@ -126,32 +102,11 @@ impl CylinderParams {
         cylinder: &CylinderLoadParams,
         valve: &ValveParams,
     ) -> Result<CylinderParams, String> {
-        let c = cylinder;
         let p = CylinderParams {
-            bore: c.bore,
-            rod: c.rod,
-            stroke: c.stroke,
-            mass: c.mass,
-            beta: c.beta,
-            v_dead: c.v_dead,
-            b_viscous: c.b_viscous,
-            f_coulomb: c.f_coulomb,
-            f_static: c.f_static,
-            v_stribeck: c.v_stribeck,
-            v_friction_smooth: c.v_friction_smooth,
-            k_endstop: c.k_endstop,
-            c_endstop: c.c_endstop,
-            c_leak: c.c_leak,
-            c_leak_external: c.c_leak_external,
+            load: *cylinder,
             k3: valve.k3,
             dp_rated: valve.dp_rated,
             dp_laminar: valve.dp_laminar,
-            p_tank: c.p_tank,
-            p_cavitation: c.p_cavitation,
-            dp_cavitation_band: c.dp_cavitation_band,
-            relief_p_crack: c.relief_p_crack,
-            relief_dp_override: c.relief_dp_override,
-            relief_q_rated: c.relief_q_rated,
         };
         p.validate()?;
         Ok(p)

@@ -39,9 +39,13 @@ fn parameters_come_from_the_table_and_cross_checks_name_the_variable() {
     );
     // Single values are checked against the table at the model boundary (model.rs tests),
     // the rules between them here.
-    let bad = CylinderParams { rod: 0.02, ..defaults };
+    let bad =
+        CylinderParams { load: CylinderLoadParams { rod: 0.02, ..defaults.load }, ..defaults };
     assert!(bad.validate().unwrap_err().contains("cylinder.rod"));
-    let bad = CylinderParams { p_cavitation: 1e5, ..defaults };
+    let bad = CylinderParams {
+        load: CylinderLoadParams { p_cavitation: 1e5, ..defaults.load },
+        ..defaults
+    };
     assert!(bad.validate().unwrap_err().contains("hydraulics.p_cavitation"));
 }
 
@@ -355,7 +359,10 @@ fn analytic_jacobian_matches_finite_differences() {
             0.0,
         ),
     ];
-    let leaky = CylinderParams { c_leak: 1e-12, c_leak_external: 3e-13, ..p };
+    let leaky = CylinderParams {
+        load: CylinderLoadParams { c_leak: 1e-12, c_leak_external: 3e-13, ..p.load },
+        ..p
+    };
     for (name, s, x_s, f_ext) in cases {
         let params = if name == "with leakage" { leaky } else { p };
         let y = s.to_array();
@@ -429,7 +436,7 @@ fn relief_flow_opens_smoothly_to_rated_flow_at_crack_plus_override() {
         assert!((relief_flow(&p, p_chamber).1 - fd).abs() < 1e-9 * fd, "{p_chamber}");
     }
     // 0 removes the valves.
-    let none = CylinderParams { relief_p_crack: 0.0, ..p };
+    let none = CylinderParams { load: CylinderLoadParams { relief_p_crack: 0.0, ..p.load }, ..p };
     assert_eq!(relief_flow(&none, 1e9), (0.0, 0.0));
     // In the equations: a sealed chamber above cracking loses exactly the relief flow.
     let s = CylinderState { p_a: crack + over, ..equilibrium(&p, P_RATED, 0.0) };
@@ -460,5 +467,7 @@ fn supply_at_or_above_the_relief_setting_is_refused() {
     assert!(p.check_supply(P_RATED).is_ok());
     let e = p.check_supply(p.relief_p_crack).unwrap_err();
     assert!(e.contains("relief.p_crack"), "{e}");
-    assert!(CylinderParams { relief_p_crack: 0.0, ..p }.check_supply(1e8).is_ok());
+    assert!(CylinderParams { load: CylinderLoadParams { relief_p_crack: 0.0, ..p.load }, ..p }
+        .check_supply(1e8)
+        .is_ok());
 }

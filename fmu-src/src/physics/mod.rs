@@ -62,17 +62,9 @@ pub(crate) struct Coefficients {
     pub inductance: f64,
     pub r_total: f64,
     pub k_backemf: f64,
-    pub k1: f64,
-    pub kf: f64,
-    pub kw: f64,
-    pub k2: f64,
-    pub k3: f64,
-    pub spool_area: f64,
-    pub zeta: f64,
+    pub valve: ValveParams,
+    /// Natural angular frequency of the first stage, 2 pi f_n.
     pub wn: f64,
-    /// Flapper and spool travel limits (0: none).
-    pub x_flapper_max: f64,
-    pub x_spool_max: f64,
 }
 
 impl Coefficients {
@@ -93,16 +85,8 @@ impl Coefficients {
             inductance: p.coil.inductance,
             r_total: p.coil.resistance + p.coil.r_sense,
             k_backemf: p.coil.k_backemf,
-            k1: v.k1,
-            kf: v.kf,
-            kw: v.kw,
-            k2: v.k2,
-            k3: v.k3,
-            spool_area: v.spool_area,
-            zeta: v.zeta,
+            valve: *v,
             wn: 2.0 * std::f64::consts::PI * v.f_n,
-            x_flapper_max: v.x_flapper_max,
-            x_spool_max: v.x_spool_max,
         })
     }
 }

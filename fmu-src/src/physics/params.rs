@@ -101,30 +101,44 @@ pub struct ValveParams {
     pub dp_laminar: f64,
 }
 
-/// Cylinder, load, leakage and fluid (pressures gauge).
+/// Cylinder, load, leakage and fluid, in SI (pressures gauge).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CylinderLoadParams {
+    /// Piston (bore) diameter (m).
     pub bore: f64,
+    /// Rod diameter (m); the rod is on the B side.
     pub rod: f64,
+    /// Full stroke (m); x runs from -stroke/2 to +stroke/2.
     pub stroke: f64,
+    /// Moving mass: piston, rod and load (kg).
     pub mass: f64,
+    /// Effective bulk modulus of oil, hoses and walls (Pa).
     pub beta: f64,
+    /// Dead volume per chamber at its end of stroke (m3).
     pub v_dead: f64,
     pub b_viscous: f64,
     pub f_coulomb: f64,
+    /// Breakaway force (peak of the Stribeck curve) (N).
     pub f_static: f64,
     pub v_stribeck: f64,
+    /// Velocity scale of the tanh that replaces sign(v) in the Coulomb/Stribeck term (m/s).
     pub v_friction_smooth: f64,
     pub k_endstop: f64,
     pub c_endstop: f64,
+    /// Internal (cross-piston) leakage A -> B per pressure difference (m3/(s.Pa)).
     pub c_leak: f64,
+    /// External leakage from each chamber to the drain (at p_tank) (m3/(s.Pa)).
     pub c_leak_external: f64,
     pub p_tank: f64,
+    /// Lowest chamber pressure (gauge) (Pa).
     pub p_cavitation: f64,
+    /// Band above the floor over which an emptying chamber's bulk modulus fades out (Pa).
     pub dp_cavitation_band: f64,
-    /// Relief valves, chamber to tank: cracking pressure above tank (0: none), override, rated flow.
+    /// Relief valves (chamber to tank): cracking pressure above tank, 0 = none (Pa).
     pub relief_p_crack: f64,
+    /// Rise above cracking at which a relief valve passes `relief_q_rated` (Pa).
     pub relief_dp_override: f64,
+    /// Rated flow of a relief valve (m3/s).
     pub relief_q_rated: f64,
 }
 

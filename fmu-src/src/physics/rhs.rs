@@ -152,9 +152,9 @@ impl WholeModel {
     pub fn error_scales(&self) -> [f64; NY] {
         let c = &self.c;
         let i = 1e-2;
-        let xf = c.k1 * i / c.kf;
+        let xf = c.valve.k1 * i / c.valve.kf;
         let [pa, pb, x, v] = STATE_SCALE;
-        [i, 100.0, 100.0, xf, xf * c.wn, c.k1 * i / c.kw, pa, pb, x, v]
+        [i, 100.0, 100.0, xf, xf * c.wn, c.valve.k1 * i / c.valve.kw, pa, pb, x, v]
     }
 
     /// The outputs at `y`.

@@ -18,10 +18,10 @@ pub(crate) fn valve_rows(c: &Coefficients, a: &mut Mat) {
     let wn2 = c.wn * c.wn;
     a[(XF, VF)] = 1.0;
     a[(VF, XF)] = -wn2;
-    a[(VF, VF)] = -2.0 * c.zeta * c.wn;
-    a[(VF, I)] = wn2 * c.k1 / c.kf;
-    a[(VF, XS)] = -wn2 * c.kw / c.kf;
-    a[(XS, XF)] = c.k2 / c.spool_area;
+    a[(VF, VF)] = -2.0 * c.valve.zeta * c.wn;
+    a[(VF, I)] = wn2 * c.valve.k1 / c.valve.kf;
+    a[(VF, XS)] = -wn2 * c.valve.kw / c.valve.kf;
+    a[(XS, XF)] = c.valve.k2 / c.valve.spool_area;
 }
 
 /// Flapper and spool at a travel stop: -1 lower, 0 free, +1 upper.
@@ -48,7 +48,7 @@ impl Stops {
 
 /// Whether the valve has travel stops at all.
 pub(crate) fn has_stops(c: &Coefficients) -> bool {
-    c.x_flapper_max > 0.0 || c.x_spool_max > 0.0
+    c.valve.x_flapper_max > 0.0 || c.valve.x_spool_max > 0.0
 }
 
 /// Holds the parts at a stop: their rows of `z' = A z` are zeroed.
@@ -71,21 +71,21 @@ pub(crate) fn stop_guards(
     mut push_guard: impl FnMut(Vector),
 ) {
     let one = unit(ONE);
-    if c.x_flapper_max > 0.0 {
+    if c.valve.x_flapper_max > 0.0 {
         match stops.flapper {
             0 => {
-                push_guard(unit(XF) - c.x_flapper_max * one);
-                push_guard(-unit(XF) - c.x_flapper_max * one);
+                push_guard(unit(XF) - c.valve.x_flapper_max * one);
+                push_guard(-unit(XF) - c.valve.x_flapper_max * one);
             }
             // Leaves the stop when the torque pulls it back.
             side => push_guard(-(side as f64) * flapper_accel),
         }
     }
-    if c.x_spool_max > 0.0 {
+    if c.valve.x_spool_max > 0.0 {
         match stops.spool {
             0 => {
-                push_guard(unit(XS) - c.x_spool_max * one);
-                push_guard(-unit(XS) - c.x_spool_max * one);
+                push_guard(unit(XS) - c.valve.x_spool_max * one);
+                push_guard(-unit(XS) - c.valve.x_spool_max * one);
             }
             // Leaves the stop when the flapper drives it back.
             side => push_guard(-(side as f64) * unit(XF)),
@@ -97,18 +97,20 @@ pub(crate) fn stop_guards(
 /// limit; then the stops consistent with `z` (`free_a`: the system without stops) hold their
 /// parts at the limit.
 pub(crate) fn settle_stops(c: &Coefficients, free_a: &Mat, z: &mut Vector) -> Stops {
-    let reach = c.x_flapper_max * (1.0 - 1e-12);
-    if c.x_flapper_max > 0.0 && (z[XF] >= reach && z[VF] > 0.0 || z[XF] <= -reach && z[VF] < 0.0) {
-        z[XF] = z[XF].clamp(-c.x_flapper_max, c.x_flapper_max);
+    let reach = c.valve.x_flapper_max * (1.0 - 1e-12);
+    if c.valve.x_flapper_max > 0.0
+        && (z[XF] >= reach && z[VF] > 0.0 || z[XF] <= -reach && z[VF] < 0.0)
+    {
+        z[XF] = z[XF].clamp(-c.valve.x_flapper_max, c.valve.x_flapper_max);
         z[VF] = 0.0;
     }
     let stops = consistent_stops(c, free_a, z);
     if stops.flapper != 0 {
-        z[XF] = stops.flapper as f64 * c.x_flapper_max;
+        z[XF] = stops.flapper as f64 * c.valve.x_flapper_max;
         z[VF] = 0.0;
     }
     if stops.spool != 0 {
-        z[XS] = stops.spool as f64 * c.x_spool_max;
+        z[XS] = stops.spool as f64 * c.valve.x_spool_max;
     }
     stops
 }
@@ -132,8 +134,8 @@ fn consistent_stops(c: &Coefficients, free_a: &Mat, z: &Vector) -> Stops {
         }
     };
     Stops {
-        flapper: side(z[XF], c.x_flapper_max, flapper_accel),
-        spool: side(z[XS], c.x_spool_max, z[XF]),
+        flapper: side(z[XF], c.valve.x_flapper_max, flapper_accel),
+        spool: side(z[XS], c.valve.x_spool_max, z[XF]),
     }
 }
 
@@ -141,15 +143,15 @@ fn consistent_stops(c: &Coefficients, free_a: &Mat, z: &Vector) -> Stops {
 /// flapper centred, unless the spool sits at its stop and the flapper carries the rest.
 /// Returns (x_f, x_s).
 pub(crate) fn equilibrium(c: &Coefficients, i_coil: f64) -> (f64, f64) {
-    let free_spool = c.k1 * i_coil / c.kw;
-    let x_s = if c.x_spool_max > 0.0 {
-        free_spool.clamp(-c.x_spool_max, c.x_spool_max)
+    let free_spool = c.valve.k1 * i_coil / c.valve.kw;
+    let x_s = if c.valve.x_spool_max > 0.0 {
+        free_spool.clamp(-c.valve.x_spool_max, c.valve.x_spool_max)
     } else {
         free_spool
     };
-    let flapper = (c.k1 * i_coil - c.kw * x_s) / c.kf;
-    let x_f = if c.x_flapper_max > 0.0 {
-        flapper.clamp(-c.x_flapper_max, c.x_flapper_max)
+    let flapper = (c.valve.k1 * i_coil - c.valve.kw * x_s) / c.valve.kf;
+    let x_f = if c.valve.x_flapper_max > 0.0 {
+        flapper.clamp(-c.valve.x_flapper_max, c.valve.x_flapper_max)
     } else {
         flapper
     };
@@ -158,7 +160,7 @@ pub(crate) fn equilibrium(c: &Coefficients, i_coil: f64) -> (f64, f64) {
 
 /// The paper's no-load flow of the hydraulic amplifier, K3 x_s.
 pub(crate) fn no_load_flow(c: &Coefficients, x_s: f64) -> f64 {
-    c.k3 * x_s
+    c.valve.k3 * x_s
 }
 
 /// Signed square root, regularised below `dp_lam` by the odd cubic `a dp + b dp^3` that
