@@ -59,3 +59,41 @@ fn integrator_stops_at_the_rail_so_a_reversal_does_not_overshoot() {
         }
     }
 }
+
+#[test]
+fn voltage_driver_clips_at_the_supply_and_says_so() {
+    // The open-loop driver applies R i_ref while that is within the supply, else the rail.
+    for (i_ref, u, saturated) in
+        [(0.05, 50.0, 0.0), (-0.05, -50.0, 0.0), (0.1, 72.0, 1.0), (-0.1, -72.0, 1.0)]
+    {
+        let (u_driver, i, flag) = settled(&[("driver", 1.0)], i_ref);
+        assert_eq!((u_driver, flag), (u, saturated), "i_ref {i_ref}");
+        assert!((i - u / 1000.0).abs() < 1e-9, "i_ref {i_ref}: {i}");
+    }
+}
+
+#[test]
+fn ideal_source_holds_the_current_with_the_voltage_r_i() {
+    // The ideal current source's voltage is what holds the current: (R + R_sense) i_ref.
+    let (u, i, flag) = settled(&[("driver", 0.0), ("coil.R_sense", 50.0)], 4e-3);
+    assert_eq!(i, 4e-3);
+    assert!((u - 1050.0 * 4e-3).abs() <= 1e-12, "{u}");
+    assert_eq!(flag, 0.0);
+}
+
+#[test]
+fn a_step_reports_the_rail_entries_and_exits_it_contains() {
+    // 5 mA from rest: the op-amp slews to the + rail (3.6 us), rides it while the current
+    // rises (~0.2 ms) and leaves it: one entry and one exit within a 1 ms step.
+    let mut m = model(&[("driver", 2.0)]);
+    m.set(vr::I_REF, 5e-3).unwrap();
+    let events = m.do_step(0.0, 1e-3).unwrap();
+    assert_eq!((events.rail_entered, events.rail_left), (1, 1));
+    // 100 mA cannot be reached: it enters the rail and stays.
+    m.set(vr::I_REF, 0.1).unwrap();
+    let events = m.do_step(m.time(), 1e-3).unwrap();
+    assert_eq!((events.rail_entered, events.rail_left), (1, 0));
+    assert_eq!(m.get(vr::DRIVER_SATURATED), Some(1.0));
+    let events = m.do_step(m.time(), 1e-3).unwrap();
+    assert_eq!((events.rail_entered, events.rail_left), (0, 0), "still at the rail");
+}
