@@ -69,3 +69,29 @@ fn industrial_output_slews_at_1_volt_per_microsecond_until_the_pi_output() {
     let down = output_after_step(3.0, 24.0, 5e-3, 0.0, 20e-6, 1e-7);
     assert_ramp(&down, -slew, 12.0e-6, 24.0);
 }
+
+#[test]
+fn output_never_moves_faster_than_the_slew_rate() {
+    // A fast coil (L = 0.1 H: L/R = 0.1 ms) makes the linear PI output fall faster than
+    // 20 V/us where it leaves the rail (Kp di/dt ~ 1e8 V/s): there the output must slew.
+    let slew = 2.0e7;
+    let mut m = model(&[("driver", 2.0), ("coil.L", 0.1)]);
+    let h = 1e-8;
+    let (mut fastest, mut slewing) = (0.0_f64, 0);
+    for i_ref in [5e-3, -5e-3, 2e-3] {
+        m.set(vr::I_REF, i_ref).unwrap();
+        let trace = first_output(run(&mut m, 0.3e-3, h, &[vr::U_DRIVER]));
+        for w in trace.windows(2) {
+            let rate = (w[1].1 - w[0].1) / h;
+            fastest = fastest.max(rate.abs());
+            if (rate.abs() / slew - 1.0).abs() < 1e-6 {
+                slewing += 1;
+            }
+        }
+    }
+    println!("fastest {fastest:e} V/s, {slewing} samples slewing");
+    // Exact propagation: a slewing output moves S h per sample up to rounding of u (1e-14
+    // V over 1e-8 s: 1e-6 relative).
+    assert!(fastest <= slew * (1.0 + 1e-6), "{fastest:e} V/s");
+    assert!(slewing > 100, "the output slews: {slewing}");
+}
