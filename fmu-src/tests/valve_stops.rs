@@ -1,0 +1,58 @@
+//! The valve's travel stops through the Model API: a start in equilibrium against them, and
+//! a state saved while they hold the flapper and spool that continues exactly.
+
+mod scenario;
+
+use ehsv_actuator::model::Model;
+use ehsv_actuator::variables::vr;
+use scenario::{model, run};
+
+const K1: f64 = 2.82462;
+const KF: f64 = 511.545;
+const KW: f64 = 74.2853;
+
+#[test]
+fn start_at_a_current_beyond_the_stops_rests_against_them() {
+    // 10 mA would hold the spool at K1 i/Kw = 0.38 mm: the 0.2 mm stop holds it, and the
+    // flapper carries the torque the feedback wire cannot, (K1 i - Kw x_s)/Kf = 26.2 um,
+    // unless its own 20 um stop holds it too. At rest nothing moves afterwards.
+    for (flapper_max, sign) in [(0.0, 1.0), (20e-6, 1.0), (0.0, -1.0), (20e-6, -1.0)] {
+        let settings = [
+            ("valve.x_spool_max", 0.2e-3),
+            ("valve.x_flapper_max", flapper_max),
+            ("i_ref", sign * 10e-3),
+        ];
+        let mut m = model(&settings);
+        let free_flapper = (K1 * 10e-3 - KW * 0.2e-3) / KF;
+        let flapper = if flapper_max > 0.0 { flapper_max } else { free_flapper };
+        for _ in 0..2 {
+            let (x_s, x_f) = (m.get(vr::X_SPOOL).unwrap(), m.get(vr::X_FLAPPER).unwrap());
+            assert_eq!(x_s, sign * 0.2e-3, "flapper stop {flapper_max}");
+            assert!(
+                (x_f - sign * flapper).abs() <= 1e-12 * flapper,
+                "flapper stop {flapper_max}: {x_f}"
+            );
+            run(&mut m, 10e-3, 1e-3, &[]);
+        }
+    }
+}
+
+#[test]
+fn a_state_saved_at_the_stops_continues_exactly() {
+    let limits = [("driver", 0.0), ("valve.x_flapper_max", 30e-6), ("valve.x_spool_max", 0.2e-3)];
+    let outputs = [vr::X_FLAPPER, vr::X_SPOOL, vr::X_PISTON, vr::P_A];
+    for sign in [1.0, -1.0] {
+        let mut m = model(&limits);
+        m.set(vr::I_REF, sign * 10e-3).unwrap();
+        run(&mut m, 5e-3, 1e-4, &[]);
+        assert_eq!(m.get(vr::X_SPOOL), Some(sign * 0.2e-3), "at the spool stop");
+        let mut restored = Model::from_bytes(&m.to_bytes()).unwrap();
+        // Released by a reversal: both leave their stops at the same instants.
+        for model in [&mut m, &mut restored] {
+            model.set(vr::I_REF, -sign * 4e-3).unwrap();
+        }
+        let a = run(&mut m, 10e-3, 1e-4, &outputs);
+        let b = run(&mut restored, 10e-3, 1e-4, &outputs);
+        assert_eq!(a, b, "a restored state continues bit for bit");
+    }
+}
