@@ -56,3 +56,23 @@ fn a_state_saved_at_the_stops_continues_exactly() {
         assert_eq!(a, b, "a restored state continues bit for bit");
     }
 }
+
+#[test]
+fn driven_into_the_stops_either_way_they_hold() {
+    // +-10 mA from the centre: the flapper overshoots towards ~55 um and the spool heads
+    // for 0.38 mm; the 30 um and 0.2 mm stops stop both, on either side.
+    let limits = [("driver", 0.0), ("valve.x_flapper_max", 30e-6), ("valve.x_spool_max", 0.2e-3)];
+    for sign in [1.0, -1.0] {
+        let mut m = model(&limits);
+        m.set(vr::I_REF, sign * 10e-3).unwrap();
+        let trace = run(&mut m, 20e-3, 1e-5, &[vr::X_FLAPPER, vr::X_SPOOL]);
+        let reach = |k: usize| trace.iter().map(|s| sign * s.1[k]).fold(f64::MIN, f64::max);
+        // Held exactly at the limit (the held value is projected; 1e-12 is rounding).
+        assert!((reach(0) - 30e-6).abs() <= 1e-12 * 30e-6, "flapper {}", reach(0));
+        assert!((reach(1) - 0.2e-3).abs() <= 1e-12 * 0.2e-3, "spool {}", reach(1));
+        let flapper_hold = (K1 * 10e-3 - KW * 0.2e-3) / KF;
+        let last = &trace.last().unwrap().1;
+        assert_eq!(last[1], sign * 0.2e-3);
+        assert!((last[0] - sign * flapper_hold).abs() <= 1e-9 * flapper_hold, "{}", last[0]);
+    }
+}
