@@ -119,3 +119,20 @@ fn voltage_driven_coil_and_first_stage_follow_their_equations() {
         assert!(back_emf > 1e3 * 1e-9, "the back-EMF shows: {back_emf:e}");
     }
 }
+
+#[test]
+fn a_start_with_current_rests_at_the_torque_balance() {
+    // K1 i = Kw x_s with the flapper centred: started there, nothing moves (the held state
+    // is an exact fixed point of the propagation, up to rounding).
+    for driver in [0.0, 1.0, 2.0] {
+        let mut m = model(&[("driver", driver), ("i_ref", 4e-3)]);
+        let k = |name: &str| m.get(index_of(name).unwrap()).unwrap();
+        let x_s = k("valve.K1") * 4e-3 / k("valve.Kw");
+        for _ in 0..2 {
+            assert!((m.get(vr::I_COIL).unwrap() - 4e-3).abs() <= 1e-15, "driver {driver}");
+            assert!((m.get(vr::X_SPOOL).unwrap() - x_s).abs() <= 1e-12 * x_s, "driver {driver}");
+            assert!(m.get(vr::X_FLAPPER).unwrap().abs() <= 1e-12 * x_s, "driver {driver}");
+            run(&mut m, 10e-3, 1e-3, &[]);
+        }
+    }
+}
