@@ -93,24 +93,26 @@ fn a_state_saved_in_motion_with_stops_configured_continues_exactly() {
 
 #[test]
 fn flapper_hitting_its_stop_at_the_top_of_its_swing_falls_back_from_it() {
-    // A 20 mA step swings the free flapper up to a peak; with the stop just below that peak
-    // the flapper reaches it while the torque already pulls it back. The impact is
+    // A 20 mA step swings the free flapper out to a peak; with the stop just inside that
+    // peak the flapper reaches it while the torque already pulls it back. The impact is
     // inelastic: it stops there (no travel beyond the limit) and falls back at once.
-    let settings = |limit: f64| [("driver", 0.0), ("valve.x_flapper_max", limit)];
-    let swing = |limit: f64| {
-        let mut m = model(&settings(limit));
-        m.set(vr::I_REF, 20e-3).unwrap();
-        scenario::first_output(run(&mut m, 2e-3, 1e-6, &[vr::X_FLAPPER]))
-    };
-    let free = swing(0.0);
-    let peak = free.iter().map(|s| s.1).fold(f64::MIN, f64::max);
-    let limit = 0.999 * peak;
-    let stopped = swing(limit);
-    let highest = stopped.iter().map(|s| s.1).fold(f64::MIN, f64::max);
-    println!("free peak {peak:e} m, limit {limit:e} m, highest {highest:e} m");
-    // Sampled every 1 us it falls back from the limit by ~1e-6 of it; the free swing passes
-    // the limit by 1e-3 of it.
-    assert!(highest <= limit * (1.0 + 1e-12) && highest > limit * (1.0 - 1e-5), "{highest}");
-    let at_stop = stopped.iter().filter(|s| s.1 >= limit * (1.0 - 1e-12)).count();
-    assert!(at_stop <= 1, "released at once, not held: {at_stop} samples at the stop");
+    for sign in [1.0, -1.0] {
+        let swing = |limit: f64| {
+            let mut m = model(&[("driver", 0.0), ("valve.x_flapper_max", limit)]);
+            m.set(vr::I_REF, sign * 20e-3).unwrap();
+            scenario::first_output(run(&mut m, 2e-3, 1e-6, &[vr::X_FLAPPER]))
+        };
+        let outmost =
+            |trace: &[(f64, f64)]| trace.iter().map(|s| sign * s.1).fold(f64::MIN, f64::max);
+        let peak = outmost(&swing(0.0));
+        let limit = 0.999 * peak;
+        let stopped = swing(limit);
+        let highest = outmost(&stopped);
+        println!("sign {sign}: free peak {peak:e} m, limit {limit:e} m, reached {highest:e} m");
+        // Sampled every 1 us it falls back from the limit by ~1e-6 of it; the free swing
+        // passes the limit by 1e-3 of it.
+        assert!(highest <= limit * (1.0 + 1e-12) && highest > limit * (1.0 - 1e-5), "{highest}");
+        let at_stop = stopped.iter().filter(|s| sign * s.1 >= limit * (1.0 - 1e-12)).count();
+        assert!(at_stop <= 1, "released at once, not held: {at_stop} samples at the stop");
+    }
 }
