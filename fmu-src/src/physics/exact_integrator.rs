@@ -201,13 +201,7 @@ impl PropagatorCache {
 pub(crate) fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
     let pieces = sys.substeps(span, 1.0);
     let h = span / pieces as f64;
-    let scale = sys.radius * h;
-    let mut terms = 1;
-    let mut bound = 1.0;
-    while terms < TAYLOR_TERMS && bound > 1e-18 {
-        bound *= scale / terms as f64;
-        terms += 1;
-    }
+    let terms = taylor_terms(sys.radius * h);
     let mut z = *z0;
     for _ in 0..pieces {
         let mut term = z;
@@ -219,6 +213,18 @@ pub(crate) fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vect
         z = sum;
     }
     z
+}
+
+/// Terms of the Taylor series of exp(A t) with |lambda| t = `scale` <= 1 that reach
+/// rounding: the first neglected one, `scale^n / n!`, is below 1e-18.
+fn taylor_terms(scale: f64) -> usize {
+    let mut terms = 1;
+    let mut bound = 1.0;
+    while terms < TAYLOR_TERMS && bound > 1e-18 {
+        bound *= scale / terms as f64;
+        terms += 1;
+    }
+    terms
 }
 
 /// Largest |eigenvalue| of `a`, from a Schur decomposition with bounded iterations; a
@@ -272,33 +278,46 @@ pub(crate) fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, pass
 
 /// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
 /// guard and the state there. Searched in windows short enough for a Taylor polynomial
-/// of the exact solution.
+/// of the exact solution; the first window ends a few times past the earliest crossing
+/// that the guards' slopes predict (a command step's slewing ends within nanoseconds, and
+/// a window that short needs a few Taylor terms, not two dozen).
 pub(crate) fn locate_event(
     sys: &ModeSystem,
     z0: &Vector,
     h: f64,
     passed: u8,
 ) -> Option<(f64, usize, Vector)> {
-    let windows = sys.substeps(h, THETA_FINE);
-    let w = h / windows as f64;
+    let longest = h / sys.substeps(h, THETA_FINE) as f64;
+    let predicted = (0..sys.n_guards)
+        .filter(|g| passed & 1 << g == 0)
+        .filter_map(|g| {
+            let (value, rate) = (sys.guards[g].dot(z0), sys.guard_rates[g].dot(z0));
+            (value <= 0.0 && rate > 0.0).then(|| -value / rate)
+        })
+        .fold(f64::INFINITY, f64::min);
+    let mut w = (PREDICTION_MARGIN * predicted).clamp(longest / 4096.0, longest);
     let mut start = *z0;
-    for j in 0..windows {
+    let mut offset = 0.0;
+    while offset < h {
+        w = w.min(h - offset);
+        let n = taylor_terms(sys.radius * w);
         // Taylor terms of z(t) = exp(A t) z: terms[k] = A^k z / k!
         let mut terms = [Vector::zeros(); TAYLOR_TERMS];
         terms[0] = start;
-        for k in 1..TAYLOR_TERMS {
+        for k in 1..n {
             terms[k] = sys.a * terms[k - 1] / k as f64;
         }
+        let terms = &terms[..n];
         let mut first: Option<(f64, usize)> = None;
         for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
             let mut coef = [0.0; TAYLOR_TERMS];
-            for (c, t) in coef.iter_mut().zip(terms.iter()) {
+            for (c, t) in coef.iter_mut().zip(terms) {
                 *c = sys.guards[g].dot(t);
             }
             if coef[0] > 0.0 {
                 continue; // passed before this window (edge triggered)
             }
-            if let Some(tau) = first_positive(&coef, w, first.map_or(w, |f| f.0)) {
+            if let Some(tau) = first_positive(&coef[..n], w, first.map_or(w, |f| f.0)) {
                 first = Some((tau, g));
             }
         }
@@ -306,25 +325,30 @@ pub(crate) fn locate_event(
             // The state handed on must be past the crossing as the mode logic evaluates it
             // (on the vector, not the polynomial), or the mode may not change and the guard
             // would be passed over: nudge forward past the rounding.
-            let mut at = horner_vec(&terms, tau);
+            let mut at = horner_vec(terms, tau);
             let mut nudge = f64::EPSILON * w;
             while sys.guards[g].dot(&at) <= 0.0 && tau < w {
                 tau = (tau + nudge).min(w);
-                at = horner_vec(&terms, tau);
+                at = horner_vec(terms, tau);
                 nudge *= 2.0;
             }
-            return Some((j as f64 * w + tau, g, at));
+            return Some((offset + tau, g, at));
         }
-        start = horner_vec(&terms, w);
+        start = horner_vec(terms, w);
+        offset += w;
+        w = longest;
     }
     None
 }
 
-fn horner(coef: &[f64; TAYLOR_TERMS], t: f64) -> f64 {
+/// The first search window ends this many times past the earliest predicted crossing.
+const PREDICTION_MARGIN: f64 = 4.0;
+
+fn horner(coef: &[f64], t: f64) -> f64 {
     coef.iter().rev().fold(0.0, |acc, c| acc * t + c)
 }
 
-fn horner_vec(terms: &[Vector; TAYLOR_TERMS], t: f64) -> Vector {
+fn horner_vec(terms: &[Vector], t: f64) -> Vector {
     terms.iter().rev().fold(Vector::zeros(), |acc, c| acc * t + c)
 }
 
@@ -332,7 +356,7 @@ fn horner_vec(terms: &[Vector; TAYLOR_TERMS], t: f64) -> Vector {
 /// last representable instant at or before the crossing's far side). Regula falsi with the
 /// Illinois modification first shrinks the bracket to near rounding in a few evaluations;
 /// bisection then finds the same adjacent pair as bisection from the start would.
-fn first_positive(coef: &[f64; TAYLOR_TERMS], w: f64, limit: f64) -> Option<f64> {
+fn first_positive(coef: &[f64], w: f64, limit: f64) -> Option<f64> {
     let mut lo = 0.0;
     let mut p_lo = coef[0];
     for s in 1..=GUARD_SAMPLES {
