@@ -69,7 +69,7 @@ impl Model {
             return Some(self.time);
         }
         let var = VARIABLES.get(index)?;
-        if var.causality == Causality::Output {
+        if !self.initialized && var.causality == Causality::Output {
             self.refresh_before_start();
         }
         Some(self.state.borrow().values[index])
@@ -86,41 +86,45 @@ impl Model {
     /// rebuild the physics here (not in doStep) from the state reached, so they take
     /// effect at the next communication point (the outputs stay those of the last one).
     /// Which variables may be set in which FMI state is otherwise the FMI layer's business.
-    pub fn set_all(
-        &mut self,
-        changes: impl IntoIterator<Item = (usize, f64)>,
-    ) -> Result<(), String> {
+    pub fn set_all<I>(&mut self, changes: I) -> Result<(), String>
+    where
+        I: IntoIterator<Item = (usize, f64)>,
+        I::IntoIter: Clone,
+    {
         let initialized = self.initialized;
         let state = self.state.get_mut();
-        let before = state.values;
+        let changes = changes.into_iter();
+        // Everything that can refuse a value alone is checked before anything is written.
         let mut retune = false;
-        let mut result = Ok(());
-        for (index, value) in changes {
-            result = settable(index, value, initialized);
-            if result.is_err() {
-                break;
-            }
+        let (mut x_ref, mut stroke) = (state.values[vr::X_REF], state.values[vr::CYLINDER_STROKE]);
+        for (index, value) in changes.clone() {
+            settable(index, value, initialized)?;
             retune |= VARIABLES[index].causality == Causality::Parameter
                 && state.values[index].to_bits() != value.to_bits();
+            match index {
+                vr::X_REF => x_ref = value,
+                vr::CYLINDER_STROKE => stroke = value,
+                _ => {}
+            }
+        }
+        if initialized {
+            check_x_ref_fits(x_ref, stroke)?;
+        }
+        // A retune checks the parameters together and may still refuse: keep the old values.
+        let before = (initialized && retune).then_some(state.values);
+        for (index, value) in changes {
             state.values[index] = value;
         }
-        if initialized && result.is_ok() {
-            result = check_inputs_fit(&state.values);
-        }
-        if initialized && retune && result.is_ok() {
-            result = params(&state.values)
+        if let Some(before) = before {
+            let rebuilt = params(&state.values)
                 .and_then(|p| state.physics.retune(&p, &inputs(&state.values), self.time));
-        }
-        match result {
-            Ok(()) => {
-                state.stale |= !initialized;
-                Ok(())
-            }
-            Err(e) => {
+            if let Err(e) = rebuilt {
                 state.values = before;
-                Err(e)
+                return Err(e);
             }
         }
+        state.stale |= !initialized;
+        Ok(())
     }
 
     /// Sets the start time (FMI SetupExperiment / EnterInitializationMode).
@@ -275,7 +279,11 @@ fn settable(index: usize, value: f64, initialized: bool) -> Result<(), String> {
 /// The rules between inputs and parameters that the table's ranges cannot express:
 /// x_ref within the stroke (the table bounds it by the longest stroke allowed).
 fn check_inputs_fit(v: &[f64; N_VARIABLES]) -> Result<(), String> {
-    let (x_ref, half) = (v[vr::X_REF], 0.5 * v[vr::CYLINDER_STROKE]);
+    check_x_ref_fits(v[vr::X_REF], v[vr::CYLINDER_STROKE])
+}
+
+fn check_x_ref_fits(x_ref: f64, stroke: f64) -> Result<(), String> {
+    let half = 0.5 * stroke;
     if x_ref.abs() > half {
         return Err(format!(
             "x_ref = {x_ref} rejected: allowed range is [{}, {half}] (+-cylinder.stroke/2)",

@@ -91,23 +91,25 @@ fn type_label(ty: VarType, version: Version) -> String {
 
 impl Instance {
     /// The index of value reference `vr` if it names a variable of a type the accessor serves.
-    fn resolve(
-        &self,
-        vr: u32,
-        accessor: &str,
-        accepts: fn(VarType) -> bool,
-    ) -> Result<usize, Status> {
+    #[inline]
+    fn resolve<A: Access>(&self, vr: u32) -> Result<usize, Status> {
+        match VARIABLES.get(vr as usize) {
+            Some(var) if A::accepts(var.ty) => Ok(vr as usize),
+            _ => self.refuse_reference(vr, A::NAME),
+        }
+    }
+
+    /// Error for a value reference that is unknown or not of the accessor's type.
+    #[cold]
+    fn refuse_reference<T>(&self, vr: u32, accessor: &str) -> Result<T, Status> {
         let Some(var) = VARIABLES.get(vr as usize) else {
             return self.error(&format!("unknown value reference {vr}"));
         };
-        if !accepts(var.ty) {
-            return self.error(&format!(
-                "value reference {vr} is {} of type {}, not {accessor}",
-                var.name,
-                type_label(var.ty, self.version)
-            ));
-        }
-        Ok(vr as usize)
+        self.error(&format!(
+            "value reference {vr} is {} of type {}, not {accessor}",
+            var.name,
+            type_label(var.ty, self.version)
+        ))
     }
 
     /// May variable `index` be set in the current state? (The table's
@@ -164,7 +166,7 @@ impl Instance {
             (self.slice("valueReferences", vrs, n_vr)?, self.slice_mut("values", values, n_values)?)
         };
         for (&vr, slot) in vrs.iter().zip(out.iter_mut()) {
-            let index = self.resolve(vr, A::NAME, A::accepts)?;
+            let index = self.resolve::<A>(vr)?;
             match self.model.get(index) {
                 Some(v) => *slot = A::to_c(v),
                 None => {
@@ -198,7 +200,7 @@ impl Instance {
             (self.slice("valueReferences", vrs, n_vr)?, self.slice("values", values, n_values)?)
         };
         for &vr in vrs {
-            let index = self.resolve(vr, A::NAME, A::accepts)?;
+            let index = self.resolve::<A>(vr)?;
             self.check_settable(index)?;
         }
         // All or nothing; tunable parameters set in Step Mode rebuild the physics here.
@@ -230,7 +232,7 @@ impl Instance {
         // SAFETY: forwarded array contract.
         let vrs = unsafe { self.slice("valueReferences", vrs, n_vr)? };
         for &vr in vrs {
-            self.resolve(vr, type_name, |_| false)?;
+            self.refuse_reference::<()>(vr, type_name)?;
         }
         Ok(Status::OK)
     }
