@@ -67,11 +67,11 @@ def test_flow_step_does_not_depend_on_the_communication_step(flow_runs, version)
     linear, rail and slew events located; the 20 kHz loop samples on an absolute clock),
     so within 1e-6 of the step size as test_step_size.py requires (measured ~1e-13).
     Cylinder side (Q_A, Q_B, p_A, p_B, x_piston, v_piston, F_hydraulic): Rodas4 with error
-    control at rtol 1e-8 per internal step; the two runs take different internal steps, so
-    they differ by the global error, a few hundred local errors of <= 1e-8 damped by the
-    stable dynamics. Tolerance 1e-6 of each signal's range over the run: 100x rtol of
+    control at rtol 1e-7 per internal step; the two runs take different internal steps, so
+    they differ by the global error, a few hundred local errors of <= 1e-7 damped by the
+    stable dynamics. Tolerance 1e-6 of each signal's range over the run: 10x rtol of
     room for accumulation and still 1e4x below the 1 % bands of the physics checks
-    (measured <= 1e-8 of the range, p_B and Q_B at the 72 V start)."""
+    (measured <= 2.9e-8 of the range, Q_B at the 72 V start)."""
     for spec in ehsv.PAPER_FLOW:
         fine = flow_runs[spec.V_supply].run
         coarse = ehsv.flow_step(version, spec.V_supply, 1e-4).run
@@ -122,7 +122,7 @@ def test_row11_steady_piston_velocity_is_port_flow_over_area(steady_flow):
     err_b = np.max(np.abs(v - q_b / CYL.area_b) / np.abs(v))
     # In steady motion the chamber pressures are constant and nothing leaks, so continuity
     # makes v = Q/A exactly whatever beta or the mass; what is left is the start transient
-    # (it decays ~10x per 10 ms: 6.5e-5 over t >= 50 ms) and Rodas4's error at rtol 1e-8.
+    # (it decays ~10x per 10 ms: 6.5e-5 over t >= 50 ms) and Rodas4's error at rtol 1e-7.
     # Over the last 10 ms: 1e-7 (measured 1.3e-8).
     late = r["time"][tail] >= 0.09
     err_a_late = np.max(np.abs(v - q_a / CYL.area_a)[late] / np.abs(v[late]))
@@ -404,7 +404,7 @@ def test_reversal_without_relief_peaks_as_an_independent_integration_says(versio
         f"reference peak {ref * 1e-6:.4f} MPa, FMU - reference {(peak - ref) / ref:.1e}, "
         f"RK4 spread {spread:.1e}"
     )
-    # RK4's spread 1.9e-8, the FMU (Rodas4 at rtol 1e-8) 2.3e-9 from it (measured)
+    # RK4's spread 1.9e-8, the FMU (Rodas4 at rtol 1e-7) 5.0e-8 from it (measured)
     assert spread < 1e-7
     assert peak == pytest.approx(ref, rel=1e-6), facts
     assert np.max(np.abs(r["p_B"][window] - fine[:, 1])) < 1e-6 * ref

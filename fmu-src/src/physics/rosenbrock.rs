@@ -10,7 +10,7 @@
 //! flow only `-1.3e4, -1.9e3, -4.0e2`. An explicit method would sit on its stability boundary
 //! (`|lambda h| < 3.3`: steps of 2..50 us) in most of these; Rodas4 takes steps set by accuracy
 //! only: one step per 0.1 ms call at rest, in steady motion and pressed on a stop. Order 4
-//! keeps the step count low at the 1e-8 tolerance.
+//! keeps the step count low at the 1e-7 tolerance.
 //! The 4x4 Jacobian and `df/dt = df/dx_s x_s'` are analytic (`linearise`, checked against
 //! differences in `tests::analytic_jacobian_matches_finite_differences`); the linear systems
 //! use a hand-written 4x4 LU with partial pivoting. A step that the call boundary cuts to at
@@ -121,7 +121,7 @@ pub(crate) struct IntegratorMemory {
 
 impl Default for IntegratorMemory {
     fn default() -> Self {
-        IntegratorMemory::new(1e-8)
+        IntegratorMemory::new(1e-7)
     }
 }
 

@@ -177,7 +177,7 @@ RTF: simulated time / wall time of the best untimed run (all instances; doStep +
 mean, p99.9, max: one doStep in thread CPU time (CLOCK_THREAD_CPUTIME_ID) [us]; maxwall: the
   worst in wall time (the difference is preemption). Timed separately (two clock reads per call).
 dev/range: worst max|output - reference| / range of that output over the run; reference: the
-  same model through the rlib at cylinder rtol 1e-10 (the FMU runs 1e-8), same grid and inputs.
+  same model through the rlib at cylinder rtol 1e-10 (the FMU runs 1e-7), same grid and inputs.
 ref spread: the same measure between that reference and one at rtol 1e-11: where it is not small
   the workload itself is ill-conditioned (a deviation of that size says nothing of the FMU).
 peer: SUNDIALS CVODE (BDF, Newton, dense LU, DQ Jacobian) on the same equations, rtol as given,
