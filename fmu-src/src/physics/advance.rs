@@ -223,21 +223,36 @@ impl Physics {
             let (substeps, h) = propagator.as_ref().map_or((1, span), |p| (p.substeps, p.h));
             for k in 0..substeps {
                 let settled = (key, h.to_bits(), z);
-                let mut next = match propagator {
-                    Some(ref p) if p.has_matrix() && self.fixed_point == Some(settled) => z,
-                    Some(ref p) => p.apply(sys, &z),
-                    None => taylor_propagate(sys, &z, h),
+                let at_fixed_point = self.fixed_point == Some(settled);
+                let propagate = |z: &Vector| {
+                    let mut next = match propagator {
+                        Some(ref p) if p.has_matrix() && at_fixed_point => *z,
+                        Some(ref p) => p.apply(sys, z),
+                        None => taylor_propagate(sys, z, h),
+                    };
+                    driver::project_onto(&self.params, &self.digital, &mut next, self.mode);
+                    next
                 };
-                driver::project_onto(&self.params, &self.digital, &mut next, self.mode);
-                // A stable system that returns to its state bit for bit is at rest: no guard
-                // can have crossed on the way.
-                if next == z {
-                    if propagator.as_ref().is_some_and(|p| p.has_matrix()) {
-                        self.fixed_point = Some(settled);
+                // A guard whose slope already reaches zero inside the sub-step (a command
+                // step's slewing ends within nanoseconds): search at once, without first
+                // propagating over a sub-step that the event will cut.
+                let predicted = predicted_crossing(sys, &z, passed);
+                let next = (predicted >= h).then(|| propagate(&z));
+                let search = match next {
+                    None => true,
+                    // A stable system that returns to its state bit for bit is at rest: no
+                    // guard can have crossed on the way.
+                    Some(next) if next == z => {
+                        if propagator.as_ref().is_some_and(|p| p.has_matrix()) {
+                            self.fixed_point = Some(settled);
+                        }
+                        false
                     }
-                } else if may_cross(sys, &z, &next, h, passed) {
+                    Some(next) => may_cross(sys, &z, &next, h, passed),
+                };
+                if search {
                     self.work.guard_locations += 1;
-                    if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed) {
+                    if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed, predicted) {
                         if merge {
                             pending = Some(pending.map_or((z, tau), |(z0, d)| (z0, d + tau)));
                         } else {
@@ -267,6 +282,7 @@ impl Physics {
                         continue 'modes;
                     }
                 }
+                let next = next.unwrap_or_else(|| propagate(&z));
                 let (z0, d) = pending.take().map_or((z, h), |(z0, d)| (z0, d + h));
                 Self::drive_cylinder(
                     sys,

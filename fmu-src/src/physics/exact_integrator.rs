@@ -278,23 +278,17 @@ pub(crate) fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, pass
 
 /// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
 /// guard and the state there. Searched in windows short enough for a Taylor polynomial
-/// of the exact solution; the first window ends a few times past the earliest crossing
-/// that the guards' slopes predict (a command step's slewing ends within nanoseconds, and
+/// of the exact solution; the first window ends a few times past `predicted`, the earliest
+/// crossing that the guards' slopes predict ([`predicted_crossing`]) (a command step's slewing ends within nanoseconds, and
 /// a window that short needs a few Taylor terms, not two dozen).
 pub(crate) fn locate_event(
     sys: &ModeSystem,
     z0: &Vector,
     h: f64,
     passed: u8,
+    predicted: f64,
 ) -> Option<(f64, usize, Vector)> {
     let longest = h / sys.substeps(h, THETA_FINE) as f64;
-    let predicted = (0..sys.n_guards)
-        .filter(|g| passed & 1 << g == 0)
-        .filter_map(|g| {
-            let (value, rate) = (sys.guards[g].dot(z0), sys.guard_rates[g].dot(z0));
-            (value <= 0.0 && rate > 0.0).then(|| -value / rate)
-        })
-        .fold(f64::INFINITY, f64::min);
     let mut w = (PREDICTION_MARGIN * predicted).clamp(longest / 4096.0, longest);
     let mut start = *z0;
     let mut offset = 0.0;
@@ -341,6 +335,22 @@ pub(crate) fn locate_event(
     None
 }
 
+/// The earliest time at which a guard (not in `passed`) reaches zero if it kept its
+/// present slope; infinite if none is rising towards zero.
+pub(crate) fn predicted_crossing(sys: &ModeSystem, z: &Vector, passed: u8) -> f64 {
+    let mut earliest = f64::INFINITY;
+    for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
+        let value = sys.guards[g].dot(z);
+        if value <= 0.0 {
+            let rate = sys.guard_rates[g].dot(z);
+            if rate > 0.0 {
+                earliest = earliest.min(-value / rate);
+            }
+        }
+    }
+    earliest
+}
+
 /// The first search window ends this many times past the earliest predicted crossing.
 const PREDICTION_MARGIN: f64 = 4.0;
 
@@ -352,56 +362,17 @@ fn horner_vec(terms: &[Vector], t: f64) -> Vector {
     terms.iter().rev().fold(Vector::zeros(), |acc, c| acc * t + c)
 }
 
-/// First t in (0, limit] where the polynomial turns positive (sampled, then bisected to the
-/// last representable instant at or before the crossing's far side). Regula falsi with the
-/// Illinois modification first shrinks the bracket to near rounding in a few evaluations;
-/// bisection then finds the same adjacent pair as bisection from the start would.
+/// First t in (0, limit] where the polynomial turns positive: sampled, then the crossing
+/// inside the first sample interval that changes sign is refined to rounding.
 fn first_positive(coef: &[f64], w: f64, limit: f64) -> Option<f64> {
-    let mut lo = 0.0;
-    let mut p_lo = coef[0];
+    let mut lo = (0.0, coef[0]);
     for s in 1..=GUARD_SAMPLES {
         let t = (w * s as f64 / GUARD_SAMPLES as f64).min(limit);
         let p_t = horner(coef, t);
         if p_t > 0.0 {
-            let (mut hi, mut p_hi) = (t, p_t);
-            let mut kept = 0i8;
-            for _ in 0..ILLINOIS_ITERATIONS {
-                if hi - lo <= 4.0 * f64::EPSILON * hi {
-                    break;
-                }
-                let mid = (lo * p_hi - hi * p_lo) / (p_hi - p_lo);
-                if !(mid > lo && mid < hi) {
-                    break;
-                }
-                let p_mid = horner(coef, mid);
-                if p_mid > 0.0 {
-                    (hi, p_hi) = (mid, p_mid);
-                    if kept == -1 {
-                        p_lo *= 0.5;
-                    }
-                    kept = -1;
-                } else {
-                    (lo, p_lo) = (mid, p_mid);
-                    if kept == 1 {
-                        p_hi *= 0.5;
-                    }
-                    kept = 1;
-                }
-            }
-            for _ in 0..200 {
-                let mid = 0.5 * (lo + hi);
-                if mid <= lo || mid >= hi {
-                    break;
-                }
-                if horner(coef, mid) > 0.0 {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
-            return Some(hi);
+            return Some(refine_crossing(coef, lo, (t, p_t)));
         }
-        (lo, p_lo) = (t, p_t);
+        lo = (t, p_t);
         if t >= limit {
             break;
         }
@@ -409,5 +380,46 @@ fn first_positive(coef: &[f64], w: f64, limit: f64) -> Option<f64> {
     None
 }
 
-/// Regula falsi steps before the closing bisection (superlinear: ~10 reach rounding).
-const ILLINOIS_ITERATIONS: usize = 16;
+/// The crossing of a polynomial inside `[lo, hi]` (p(lo) <= 0 < p(hi)), as the earliest
+/// instant found where p > 0, within a few roundings of the root. Safeguarded Newton from
+/// the secant point: a guard is nearly linear across one sample interval, so two or three
+/// iterations reach rounding (bisection to adjacent numbers took ~40 evaluations).
+fn refine_crossing(coef: &[f64], (mut lo, p_lo): (f64, f64), (mut hi, p_hi): (f64, f64)) -> f64 {
+    let mut t = lo + (hi - lo) * (p_lo / (p_lo - p_hi));
+    for _ in 0..REFINE_ITERATIONS {
+        if !(t > lo && t < hi) {
+            t = 0.5 * (lo + hi);
+        }
+        let (p, slope) = horner_with_slope(coef, t);
+        if p > 0.0 {
+            hi = t;
+        } else {
+            lo = t;
+        }
+        let next = if slope > 0.0 { t - p / slope } else { 0.5 * (lo + hi) };
+        if hi - lo <= 4.0 * f64::EPSILON * hi || (next - t).abs() <= 2.0 * f64::EPSILON * t {
+            break;
+        }
+        t = next;
+    }
+    if t == hi {
+        return hi;
+    }
+    // The last iterate is at or below zero, within rounding of the root: step past it.
+    let mut nudge = f64::EPSILON * hi;
+    while lo + nudge < hi {
+        if horner(coef, lo + nudge) > 0.0 {
+            return lo + nudge;
+        }
+        nudge *= 2.0;
+    }
+    hi
+}
+
+/// Newton iterations at most before the crossing's bracket is taken as it is.
+const REFINE_ITERATIONS: usize = 12;
+
+/// The polynomial and its derivative at `t` (one Horner pass).
+fn horner_with_slope(coef: &[f64], t: f64) -> (f64, f64) {
+    coef.iter().rev().fold((0.0, 0.0), |(p, dp), c| (p * t + c, dp * t + p))
+}

@@ -31,7 +31,9 @@ pub use params::{
 
 use cylinder::{CylinderParams, CylinderState};
 use driver::{Mode, MODES};
-use exact_integrator::{locate_event, may_cross, taylor_propagate, ModeSystem, PropagatorCache};
+use exact_integrator::{
+    locate_event, may_cross, predicted_crossing, taylor_propagate, ModeSystem, PropagatorCache,
+};
 use hbridge::Digital;
 use outer_loop::{LoopParams, OuterLoop};
 use rosenbrock::IntegratorMemory;
