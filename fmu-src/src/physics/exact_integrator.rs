@@ -365,6 +365,13 @@ fn horner_vec(terms: &[Vector], t: f64) -> Vector {
 /// First t in (0, limit] where the polynomial turns positive: sampled, then the crossing
 /// inside the first sample interval that changes sign is refined to rounding.
 fn first_positive(coef: &[f64], w: f64, limit: f64) -> Option<f64> {
+    // A guard that cannot climb to zero by `limit` even with every term pushing up (the
+    // other exit guards of a mode, far from their thresholds) needs no samples.
+    let reach = limit.min(w);
+    let rise = coef[1..].iter().rev().fold(0.0, |acc, c| (acc + c.abs()) * reach);
+    if coef[0] + rise < 0.0 {
+        return None;
+    }
     let mut lo = (0.0, coef[0]);
     for s in 1..=GUARD_SAMPLES {
         let t = (w * s as f64 / GUARD_SAMPLES as f64).min(limit);
