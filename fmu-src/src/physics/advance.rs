@@ -171,17 +171,24 @@ impl Physics {
             start: [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],
             end: [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
         };
-        let spool = |tau: f64| (path.position(tau), path.rate(tau));
-        let stats = rosenbrock::advance_with_rate(
-            params,
-            cylinder,
-            h,
-            inputs.p_supply,
-            inputs.f_ext,
-            spool,
-            memory,
-        )?;
-        work.add(&stats);
+        // The port laws change sides at null spool, a kink in the flows that Rodas4 would
+        // reject its way across: the piece is split there.
+        let mut done = 0.0;
+        for end in [path.null_crossing(), Some(h)].into_iter().flatten() {
+            let offset = done;
+            let spool = |tau: f64| (path.position(offset + tau), path.rate(offset + tau));
+            let stats = rosenbrock::advance_with_rate(
+                params,
+                cylinder,
+                end - offset,
+                inputs.p_supply,
+                inputs.f_ext,
+                spool,
+                memory,
+            )?;
+            work.add(&stats);
+            done = end;
+        }
         Ok(())
     }
 

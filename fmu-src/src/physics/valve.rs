@@ -253,6 +253,36 @@ impl SpoolPath {
         let d21 = 1.5 * s2 - 4.0 * s3 + 2.5 * s4;
         (a[0] - b[0]) * d00 / h + a[1] * d10 + h * a[2] * d20 + b[1] * d11 + h * b[2] * d21
     }
+
+    /// Where the spool passes null inside `(0, h)`, if its ends lie on opposite sides:
+    /// safeguarded Newton on the path, to rounding.
+    pub(crate) fn null_crossing(&self) -> Option<f64> {
+        let (x0, x1) = (self.start[0], self.end[0]);
+        if x0 * x1 >= 0.0 {
+            return None;
+        }
+        let rising = x1 > 0.0;
+        let (mut lo, mut hi) = (0.0, self.h);
+        let mut t = self.h * x0 / (x0 - x1);
+        for _ in 0..60 {
+            if !(t > lo && t < hi) {
+                t = 0.5 * (lo + hi);
+            }
+            let x = self.position(t);
+            if (x > 0.0) == rising {
+                hi = t;
+            } else {
+                lo = t;
+            }
+            if hi - lo <= 4.0 * f64::EPSILON * hi {
+                break;
+            }
+            let rate = self.rate(t);
+            t = if rate != 0.0 { t - x / rate } else { 0.5 * (lo + hi) };
+        }
+        let t = 0.5 * (lo + hi);
+        (t > 1e-9 * self.h && t < (1.0 - 1e-9) * self.h).then_some(t)
+    }
 }
 
 #[cfg(test)]
@@ -310,5 +340,20 @@ mod tests {
         );
         assert!((path.rate(0.0) - path.start[1]).abs() < 1e-15);
         assert!((path.rate(path.h) - path.end[1]).abs() < 1e-14);
+    }
+
+    #[test]
+    fn spool_path_null_crossing_is_the_root_of_the_path() {
+        // x(t) = a + b t + c t^2 (the quintic reproduces it): root (-b + sqrt(b^2 - 4ac))/(2c).
+        let (a, b, c, h) = (-2.0e-5, 0.5, -1.0e3, 1e-4);
+        let x = |t: f64| [a + b * t + c * t * t, b + 2.0 * c * t, 2.0 * c];
+        let path = SpoolPath { h, start: x(0.0), end: x(h) };
+        let root = (-b + (b * b - 4.0 * a * c).sqrt()) / (2.0 * c);
+        assert!(root > 0.0 && root < h);
+        let found = path.null_crossing().expect("the ends lie on opposite sides");
+        assert!((found - root).abs() < 1e-12 * h, "{found} vs {root}");
+        // Ends on the same side (or one end at null): nothing to split.
+        assert_eq!(SpoolPath { h, start: x(0.0), end: x(0.5 * root) }.null_crossing(), None);
+        assert_eq!(SpoolPath { h, start: [0.0, b, 0.0], end: x(h) }.null_crossing(), None);
     }
 }
