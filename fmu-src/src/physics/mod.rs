@@ -174,9 +174,15 @@ pub struct Physics {
     fixed_point: Option<(usize, u64, Vector)>,
     /// Supply pressure of the last step (the port flows depend on it).
     p_supply: f64,
+    /// Inputs and step size (bits) of the last step if it left the state as it was, bit
+    /// for bit, with no clock running: the same step again changes nothing (a pure cache).
+    resting: Option<RestKey>,
     cache: PropagatorCache,
     work: Work,
 }
+
+/// Inputs and step size as bits (see `Physics::resting`).
+type RestKey = [u64; 7];
 
 /// Inputs held over one step, as the equations use them.
 #[derive(Clone, Copy)]
@@ -237,6 +243,7 @@ impl Physics {
             cylinder_rest: None,
             fixed_point: None,
             p_supply: inputs.p_supply,
+            resting: None,
             cache: PropagatorCache::new(),
             work: Work::default(),
         };
