@@ -28,7 +28,7 @@ const MAX_SCALED_NORM: f64 = 1e25;
 const MAX_SUBSTEPS: usize = 1 << 14;
 /// Driver guards (4) + flapper stop guards (2) + spool stop guards (2).
 const MAX_GUARDS: usize = 8;
-const CACHE_SLOTS: usize = 8;
+const CACHE_SLOTS: usize = 32;
 
 /// The linear system of one mode: dynamics, exit guards (leave when `guard . z > 0`),
 /// and the sub-step lengths that keep |lambda|*h bounded.
