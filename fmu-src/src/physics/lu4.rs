@@ -22,8 +22,11 @@ impl Lu4 {
 
     #[inline(always)]
     pub(crate) fn solve(&self, mut b: Vec4) -> Vec4 {
+        // Usually no row was swapped: b then stays in registers.
         for col in 0..N_STATES {
-            b.swap(col, self.pivot[col]);
+            if self.pivot[col] != col {
+                b.swap(col, self.pivot[col]);
+            }
         }
         for row in 1..N_STATES {
             for c in 0..row {
