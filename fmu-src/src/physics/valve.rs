@@ -176,6 +176,7 @@ pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
 }
 
 /// Actual port flows `(Q_A into A, Q_B out of B)` (m3/s) for spool position `x_s`.
+#[inline(always)]
 pub(crate) fn port_flows(
     params: &CylinderParams,
     state: &CylinderState,
