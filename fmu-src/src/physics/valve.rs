@@ -168,7 +168,8 @@ pub(crate) fn no_load_flow(c: &Coefficients, x_s: f64) -> f64 {
 pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
     let magnitude = dp.abs();
     if magnitude >= dp_lam {
-        dp.signum() * magnitude.sqrt()
+        // dp.signum() * sqrt(|dp|) (dp is not NaN here), without signum's NaN handling.
+        magnitude.sqrt().copysign(dp)
     } else {
         let s = dp / dp_lam;
         dp_lam.sqrt() * s * (1.25 - 0.25 * s * s)
