@@ -213,8 +213,45 @@ pub(crate) fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) ->
 /// Friction force opposing motion, viscous part included (N).
 fn friction(params: &CylinderParams, v: f64) -> f64 {
     let stribeck = (v / params.v_stribeck).powi(2);
-    let dry = params.f_coulomb + (params.f_static - params.f_coulomb) * (-stribeck).exp();
-    dry * (v / params.v_friction_smooth).tanh() + params.b_viscous * v
+    let excess = params.f_static - params.f_coulomb;
+    // Well past the Stribeck speed the decayed part is below half an ulp of F_coulomb
+    // (F_coulomb * 2^-54 bounds that from below), so the sum is F_coulomb exactly.
+    let dry = if stribeck > STRIBECK_TAIL.0
+        && excess.abs() * STRIBECK_TAIL.1 <= params.f_coulomb * (0.25 * f64::EPSILON)
+    {
+        params.f_coulomb
+    } else {
+        params.f_coulomb + excess * stribeck_decay(stribeck)
+    };
+    dry * smooth_sign(v / params.v_friction_smooth) + params.b_viscous * v
+}
+
+/// `(s, b)`: for `stribeck > s` the computed `exp(-stribeck)` is below `b` (`e^-50 =
+/// 1.93e-22`, with room for libm's rounding).
+const STRIBECK_TAIL: (f64, f64) = (50.0, 2.0e-22);
+
+/// `exp(-stribeck)` for `stribeck >= 0`. Beyond [`DECAY_UNDERFLOW`] that is exactly 0 in
+/// f64; returned without the call (a moving piston is there: libm's underflow path is slow).
+pub(crate) fn stribeck_decay(stribeck: f64) -> f64 {
+    if stribeck > DECAY_UNDERFLOW {
+        0.0
+    } else {
+        (-stribeck).exp()
+    }
+}
+
+/// `exp(-x)` rounds to 0 for every `x` above about 745.13 (`e^-x` below half the smallest
+/// subnormal); a margin above that.
+const DECAY_UNDERFLOW: f64 = 750.0;
+
+/// `tanh(a)`, the friction's smooth sign. For `|a| >= 22` tanh is `+-1` exactly in f64 (the
+/// cut-off of glibc's and musl's own shortcut); returned without the call.
+pub(crate) fn smooth_sign(a: f64) -> f64 {
+    if a.abs() >= 22.0 {
+        1.0_f64.copysign(a)
+    } else {
+        a.tanh()
+    }
 }
 
 /// End-stop contact force on the piston, positive towards +x (N). Never pulls.

@@ -3,7 +3,8 @@
 //! cylinder's tests).
 
 use super::cylinder::{
-    relief_flow, CylinderParams, Mat4, Vec4, MIN_VOLUME_FRACTION, N_STATES, PA, PB, V, X,
+    relief_flow, smooth_sign, stribeck_decay, CylinderParams, Mat4, Vec4, MIN_VOLUME_FRACTION,
+    N_STATES, PA, PB, V, X,
 };
 use super::valve::{regularised_sqrt, regularised_sqrt_slope};
 
@@ -84,12 +85,12 @@ pub(crate) fn linearise(
     let dp_b = stiff_b * inflow_b * cf_b;
     // Mechanics.
     let stribeck = (v / params.v_stribeck).powi(2);
-    let decay = (-stribeck).exp();
+    let decay = stribeck_decay(stribeck);
     let dry = params.f_coulomb + (params.f_static - params.f_coulomb) * decay;
     let ddry_dv = (params.f_static - params.f_coulomb)
         * decay
         * (-2.0 * v / (params.v_stribeck * params.v_stribeck));
-    let th = (v / params.v_friction_smooth).tanh();
+    let th = smooth_sign(v / params.v_friction_smooth);
     let friction = dry * th + params.b_viscous * v;
     let dfriction_dv =
         ddry_dv * th + dry * (1.0 - th * th) / params.v_friction_smooth + params.b_viscous;

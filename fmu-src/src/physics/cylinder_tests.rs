@@ -471,3 +471,41 @@ fn supply_at_or_above_the_relief_setting_is_refused() {
         .check_supply(1e8)
         .is_ok());
 }
+
+#[test]
+fn friction_shortcuts_give_the_bits_of_the_full_formula() {
+    // The friction law as written in the module docs, every term through libm.
+    let full = |p: &CylinderParams, v: f64| {
+        let stribeck = (v / p.v_stribeck).powi(2);
+        let dry = p.f_coulomb + (p.f_static - p.f_coulomb) * (-stribeck).exp();
+        dry * (v / p.v_friction_smooth).tanh() + p.b_viscous * v
+    };
+    let defaults = CylinderParams::default();
+    let load = |f_coulomb: f64, f_static: f64, b_viscous: f64| CylinderParams {
+        load: CylinderLoadParams { f_coulomb, f_static, b_viscous, ..defaults.load },
+        ..defaults
+    };
+    // Defaults, no Coulomb part (the exact-Coulomb shortcut must not apply), a Stribeck peak
+    // far above the Coulomb level, friction falling below it, and no viscous part.
+    let cases = [defaults, load(0.0, 30.0, 200.0), load(1e-3, 3e4, 0.0), load(40.0, 20.0, 0.0)];
+    for p in &cases {
+        // Speeds across every cut-off (tanh saturating, the Stribeck tail, exp underflow),
+        // densely around them, both signs.
+        let mut speeds = vec![0.0, 1e-9, f64::INFINITY];
+        let mut v = 1e-7;
+        while v < 10.0 {
+            speeds.push(v);
+            v *= 1.0007;
+        }
+        for cut in
+            [22.0 * p.v_friction_smooth, 50f64.sqrt() * p.v_stribeck, 750f64.sqrt() * p.v_stribeck]
+        {
+            for k in -50..=50 {
+                speeds.push(f64::from_bits((cut.to_bits() as i64 + k) as u64));
+            }
+        }
+        for v in speeds.iter().flat_map(|&v| [v, -v]) {
+            assert_eq!(friction(p, v).to_bits(), full(p, v).to_bits(), "v = {v:e}, {p:?}");
+        }
+    }
+}

@@ -7,43 +7,31 @@ use super::cylinder::{Mat4, Vec4, N_STATES};
 pub(crate) struct Lu4 {
     lu: Mat4,
     pivot: [usize; N_STATES],
+    /// `1 / U_ii`: the back substitution multiplies by these. Its four dividing steps
+    /// depend on each other, six solves per Rosenbrock step, and a division's latency is
+    /// several multiplications'; the result differs from dividing by a rounding at most.
+    inv_diagonal: Vec4,
 }
 
 impl Lu4 {
     pub(crate) fn factor(mut a: Mat4) -> Option<Lu4> {
         let mut pivot = [0; N_STATES];
-        for col in 0..N_STATES {
-            let mut best = col;
-            let mut best_abs = a[col][col].abs();
-            for (row, values) in a.iter().enumerate().skip(col + 1) {
-                if values[col].abs() > best_abs {
-                    best = row;
-                    best_abs = values[col].abs();
-                }
-            }
-            let p = a[best][col];
-            if p == 0.0 || !p.is_finite() {
-                return None;
-            }
-            if best != col {
-                a.swap(col, best);
-            }
-            pivot[col] = best;
-            let pivot_row = a[col];
-            for row in a.iter_mut().skip(col + 1) {
-                let m = row[col] / p;
-                row[col] = m;
-                for c in col + 1..N_STATES {
-                    row[c] -= m * pivot_row[c];
-                }
-            }
-        }
-        Some(Lu4 { lu: a, pivot })
+        // One call per column with the column a constant: the loops below it unroll.
+        eliminate::<0>(&mut a, &mut pivot)?;
+        eliminate::<1>(&mut a, &mut pivot)?;
+        eliminate::<2>(&mut a, &mut pivot)?;
+        eliminate::<3>(&mut a, &mut pivot)?;
+        let inv_diagonal = std::array::from_fn(|i| 1.0 / a[i][i]);
+        Some(Lu4 { lu: a, pivot, inv_diagonal })
     }
 
+    #[inline(always)]
     pub(crate) fn solve(&self, mut b: Vec4) -> Vec4 {
+        // Usually no row was swapped: b then stays in registers.
         for col in 0..N_STATES {
-            b.swap(col, self.pivot[col]);
+            if self.pivot[col] != col {
+                b.swap(col, self.pivot[col]);
+            }
         }
         for row in 1..N_STATES {
             for c in 0..row {
@@ -54,10 +42,41 @@ impl Lu4 {
             for c in row + 1..N_STATES {
                 b[row] -= self.lu[row][c] * b[c];
             }
-            b[row] /= self.lu[row][row];
+            b[row] *= self.inv_diagonal[row];
         }
         b
     }
+}
+
+/// Column `COL` of the elimination: the largest remaining entry of the column as the pivot
+/// (`None` if it is 0 or not finite), its row swapped up, the multipliers stored below it.
+#[inline(always)]
+fn eliminate<const COL: usize>(a: &mut Mat4, pivot: &mut [usize; N_STATES]) -> Option<()> {
+    let mut best = COL;
+    let mut best_abs = a[COL][COL].abs();
+    for (row, values) in a.iter().enumerate().skip(COL + 1) {
+        if values[COL].abs() > best_abs {
+            best = row;
+            best_abs = values[COL].abs();
+        }
+    }
+    let p = a[best][COL];
+    if p == 0.0 || !p.is_finite() {
+        return None;
+    }
+    if best != COL {
+        a.swap(COL, best);
+    }
+    pivot[COL] = best;
+    let pivot_row = a[COL];
+    for row in a.iter_mut().skip(COL + 1) {
+        let m = row[COL] / p;
+        row[COL] = m;
+        for c in COL + 1..N_STATES {
+            row[c] -= m * pivot_row[c];
+        }
+    }
+    Some(())
 }
 
 #[cfg(test)]

@@ -381,7 +381,10 @@ struct Linearisation {
 }
 
 /// One step of `method` from `(tau, y)` of size `h`: the new state and its scaled error norm.
-#[allow(clippy::needless_range_loop)]
+/// Inlined at both call sites and unrolled stage by stage ([`stage`]) so that the method's
+/// coefficients are constants there: the loops unroll and the terms with a zero coefficient
+/// fold away. Every remaining operation is the one of the method's formulas, in the same order.
+#[inline(always)]
 fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
     method: &Rosenbrock<S>,
     model: &Rhs<'_, F>,
@@ -391,50 +394,102 @@ fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
     stats: &mut Stats,
 ) -> Result<(Vec4, f64), String> {
     // W = I/(h gamma) - J
+    let diagonal = 1.0 / (h * method.gamma);
     let mut w = lin.jac;
     for (i, row) in w.iter_mut().enumerate() {
         for value in row.iter_mut() {
             *value = -*value;
         }
-        row[i] += 1.0 / (h * method.gamma);
+        row[i] += diagonal;
     }
     stats.factorisations += 1;
     let lu = Lu4::factor(w).ok_or_else(|| "hydraulics: singular iteration matrix".to_string())?;
-    let mut k = [[0.0; N_STATES]; S];
-    let mut fi = lin.f0;
-    for stage in 0..S {
-        if stage > 0 && method.new_f[stage] {
-            let mut yi = *y;
-            for j in 0..stage {
-                for n in 0..N_STATES {
-                    yi[n] += method.a[stage][j] * k[j][n];
-                }
-            }
-            fi = model.f(tau + method.nodes[stage] * h, &yi, stats);
-        }
-        let mut rhs = fi;
-        for n in 0..N_STATES {
-            rhs[n] += h * method.d[stage] * lin.f_t[n];
-            for j in 0..stage {
-                rhs[n] += method.c[stage][j] / h * k[j][n];
-            }
-        }
-        k[stage] = lu.solve(rhs);
+    let mut st = Stages { k: [[0.0; N_STATES]; S], f: lin.f0, point: *y };
+    macro_rules! stages {
+        ($($i:literal)*) => { $( stage::<$i, S, F>(method, model, lin, &lu, (tau, y, h), &mut st, stats); )* };
     }
+    const { assert!(S <= 6, "stages! below unrolls at most 6 stages") };
+    stages!(0 1 2 3 4 5);
+    let k = &st.k;
+    // Stiffly accurate (the last row of `a` is `m` without its last entry, which is 1):
+    // `y_new` is the last stage's point plus the last stage, the same sum in the same order.
+    let stiffly_accurate = method.m[S - 1] == 1.0
+        && method.new_f[S - 1]
+        && (0..S - 1).all(|j| method.m[j] == method.a[S - 1][j]);
     let mut y_new = *y;
     let mut sum = 0.0;
     for n in 0..N_STATES {
+        if stiffly_accurate {
+            y_new[n] = st.point[n] + k[S - 1][n];
+        } else {
+            for (m, k) in method.m.iter().zip(k) {
+                y_new[n] += m * k[n];
+            }
+        }
         let mut error = 0.0;
-        for j in 0..S {
-            y_new[n] += method.m[j] * k[j][n];
-            error += method.e[j] * k[j][n];
+        for (e, k) in method.e.iter().zip(k) {
+            if *e != 0.0 {
+                error += e * k[n];
+            }
         }
         let scale = rtol * y[n].abs().max(y_new[n].abs()).max(STATE_SCALE[n]);
         sum += (error / scale).powi(2);
     }
     let err = (sum / N_STATES as f64).sqrt();
-    // A non-finite stage is an error estimate of infinity: the step is rejected and shrunk.
-    Ok((y_new, if err.is_finite() { err } else { f64::INFINITY }))
+    // A non-finite stage is an error estimate of infinity: the step is rejected and shrunk
+    // (the stages the estimate leaves out all enter `y_new`).
+    let finite = err.is_finite() && y_new.iter().all(|v| v.is_finite());
+    Ok((y_new, if finite { err } else { f64::INFINITY }))
+}
+
+/// The stages of one Rosenbrock step so far: `k_i`, and the latest model evaluation and
+/// the point it was taken at.
+struct Stages<const S: usize> {
+    k: [Vec4; S],
+    f: Vec4,
+    point: Vec4,
+}
+
+/// Stage `I` of `method` (nothing if it has fewer stages): its point and model evaluation
+/// if it has one, its right-hand side, and `k_I`. `I` is a constant, so the sums over the
+/// earlier stages unroll.
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+fn stage<const I: usize, const S: usize, F: Fn(f64) -> (f64, f64)>(
+    method: &Rosenbrock<S>,
+    model: &Rhs<'_, F>,
+    lin: &Linearisation,
+    lu: &Lu4,
+    (tau, y, h): (f64, &Vec4, f64),
+    st: &mut Stages<S>,
+    stats: &mut Stats,
+) {
+    if I >= S {
+        return;
+    }
+    if I > 0 && method.new_f[I] {
+        st.point = *y;
+        for j in 0..I {
+            for n in 0..N_STATES {
+                st.point[n] += method.a[I][j] * st.k[j][n];
+            }
+        }
+        st.f = model.f(tau + method.nodes[I] * h, &st.point, stats);
+    }
+    let mut rhs = st.f;
+    if method.d[I] != 0.0 {
+        let hd = h * method.d[I];
+        for n in 0..N_STATES {
+            rhs[n] += hd * lin.f_t[n];
+        }
+    }
+    for j in 0..I {
+        let c = method.c[I][j] / h;
+        for n in 0..N_STATES {
+            rhs[n] += c * st.k[j][n];
+        }
+    }
+    st.k[I] = lu.solve(rhs);
 }
 
 #[cfg(test)]

@@ -168,7 +168,8 @@ pub(crate) fn no_load_flow(c: &Coefficients, x_s: f64) -> f64 {
 pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
     let magnitude = dp.abs();
     if magnitude >= dp_lam {
-        dp.signum() * magnitude.sqrt()
+        // dp.signum() * sqrt(|dp|) (dp is not NaN here), without signum's NaN handling.
+        magnitude.sqrt().copysign(dp)
     } else {
         let s = dp / dp_lam;
         dp_lam.sqrt() * s * (1.25 - 0.25 * s * s)
@@ -176,6 +177,7 @@ pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
 }
 
 /// Actual port flows `(Q_A into A, Q_B out of B)` (m3/s) for spool position `x_s`.
+#[inline(always)]
 pub(crate) fn port_flows(
     params: &CylinderParams,
     state: &CylinderState,
