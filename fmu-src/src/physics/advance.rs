@@ -184,11 +184,11 @@ impl Physics {
         }
         let a = &sys.a;
         let (az0, az1) = (a * z0, a * z1);
-        let path = SpoolPath {
+        let path = SpoolPath::new(
             h,
-            start: [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],
-            end: [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
-        };
+            [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],
+            [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
+        );
         // The port laws change sides at null spool, a kink in the flows that Rodas4 would
         // reject its way across: the piece is split there.
         let mut done = 0.0;

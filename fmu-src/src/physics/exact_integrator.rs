@@ -8,7 +8,7 @@
 //! the same result at any communication step. Mode changes happen where a linear *guard*
 //! `c . z` crosses zero (the output reaches a rail, leaves it, the error changes sign,
 //! the slew limit binds); they are located to machine precision on the exact trajectory
-//! (a Taylor polynomial of the guard inside a short window, then bisection).
+//! (a Taylor polynomial of the guard inside a short window, then safeguarded Newton).
 //! The cost of a step without events is one 9x9 matrix-vector product per sub-step, with
 //! propagators cached per (mode, sub-step); no heap allocation while stepping.
 //!

@@ -215,51 +215,54 @@ pub(crate) fn regularised_sqrt_slope(dp: f64, dp_lam: f64) -> f64 {
 }
 
 /// The spool path over one call: the quintic Hermite interpolant through position, rate
-/// and acceleration at both ends of `[0, h]` (the physics core knows them exactly).
+/// and acceleration at both ends of `[0, h]` (the physics core knows them exactly), kept as
+/// a polynomial in `s = tau / h` (the integrator evaluates it at every stage).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SpoolPath {
     pub h: f64,
-    pub start: [f64; 3],
-    pub end: [f64; 3],
+    /// Position = sum of `coef[k] s^k`.
+    coef: [f64; 6],
+    /// The end position as given (the polynomial's sum at s = 1 may differ by rounding).
+    end: f64,
 }
 
 impl SpoolPath {
+    /// The quintic through `start` and `end`, each `[position, rate, acceleration]`.
+    pub(crate) fn new(h: f64, start: [f64; 3], end: [f64; 3]) -> SpoolPath {
+        // Derivatives with respect to s are h and h^2 times those in time.
+        let (x0, v0, a0) = (start[0], h * start[1], h * h * start[2]);
+        let (x1, v1, a1) = (end[0], h * end[1], h * h * end[2]);
+        // What the quadratic start leaves at s = 1 in value, slope and curvature.
+        let d0 = x1 - x0 - v0 - 0.5 * a0;
+        let d1 = v1 - v0 - a0;
+        let d2 = a1 - a0;
+        let coef = [
+            x0,
+            v0,
+            0.5 * a0,
+            10.0 * d0 - 4.0 * d1 + 0.5 * d2,
+            -15.0 * d0 + 7.0 * d1 - d2,
+            6.0 * d0 - 3.0 * d1 + 0.5 * d2,
+        ];
+        SpoolPath { h, coef, end: x1 }
+    }
+
     pub(crate) fn position(&self, tau: f64) -> f64 {
-        let (h, a, b) = (self.h, &self.start, &self.end);
-        let s = tau / h;
-        let (s2, s3) = (s * s, s * s * s);
-        let (s4, s5) = (s3 * s, s3 * s2);
-        let h00 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5;
-        let h10 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5;
-        let h20 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5);
-        let h01 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5;
-        let h11 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5;
-        let h21 = 0.5 * (s3 - 2.0 * s4 + s5);
-        a[0] * h00
-            + h * a[1] * h10
-            + h * h * a[2] * h20
-            + b[0] * h01
-            + h * b[1] * h11
-            + h * h * b[2] * h21
+        let s = tau / self.h;
+        self.coef.iter().rev().fold(0.0, |acc, c| acc * s + c)
     }
 
     /// d/dtau of [`SpoolPath::position`].
     pub(crate) fn rate(&self, tau: f64) -> f64 {
-        let (h, a, b) = (self.h, &self.start, &self.end);
-        let s = tau / h;
-        let (s2, s3, s4) = (s * s, s * s * s, s * s * s * s);
-        let d00 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4;
-        let d10 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4;
-        let d20 = s - 4.5 * s2 + 6.0 * s3 - 2.5 * s4;
-        let d11 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4;
-        let d21 = 1.5 * s2 - 4.0 * s3 + 2.5 * s4;
-        (a[0] - b[0]) * d00 / h + a[1] * d10 + h * a[2] * d20 + b[1] * d11 + h * b[2] * d21
+        let s = tau / self.h;
+        let c = &self.coef;
+        (c[1] + s * (2.0 * c[2] + s * (3.0 * c[3] + s * (4.0 * c[4] + s * 5.0 * c[5])))) / self.h
     }
 
     /// Where the spool passes null inside `(0, h)`, if its ends lie on opposite sides:
     /// safeguarded Newton on the path, to rounding.
     pub(crate) fn null_crossing(&self) -> Option<f64> {
-        let (x0, x1) = (self.start[0], self.end[0]);
+        let (x0, x1) = (self.coef[0], self.end);
         if x0 * x1 >= 0.0 {
             return None;
         }
@@ -326,7 +329,8 @@ mod tests {
 
     #[test]
     fn spool_path_rate_is_the_derivative_of_its_position() {
-        let path = SpoolPath { h: 1e-4, start: [1.0e-4, 0.3, -2.0e3], end: [1.3e-4, 0.1, 5.0e3] };
+        let (start, end) = ([1.0e-4, 0.3, -2.0e3], [1.3e-4, 0.1, 5.0e3]);
+        let path = SpoolPath::new(1e-4, start, end);
         for tau in [0.0, 0.1, 0.5, 0.77, 1.0].map(|s| s * path.h) {
             let d = 1e-6 * path.h;
             let fd = (path.position(tau + d) - path.position(tau - d)) / (2.0 * d);
@@ -337,11 +341,11 @@ mod tests {
             );
         }
         assert!(
-            (path.position(0.0) - path.start[0]).abs() < 1e-18
-                && (path.position(path.h) - path.end[0]).abs() < 1e-18
+            (path.position(0.0) - start[0]).abs() < 1e-18
+                && (path.position(path.h) - end[0]).abs() < 1e-18
         );
-        assert!((path.rate(0.0) - path.start[1]).abs() < 1e-15);
-        assert!((path.rate(path.h) - path.end[1]).abs() < 1e-14);
+        assert!((path.rate(0.0) - start[1]).abs() < 1e-15);
+        assert!((path.rate(path.h) - end[1]).abs() < 1e-14);
     }
 
     #[test]
@@ -349,13 +353,13 @@ mod tests {
         // x(t) = a + b t + c t^2 (the quintic reproduces it): root (-b + sqrt(b^2 - 4ac))/(2c).
         let (a, b, c, h) = (-2.0e-5, 0.5, -1.0e3, 1e-4);
         let x = |t: f64| [a + b * t + c * t * t, b + 2.0 * c * t, 2.0 * c];
-        let path = SpoolPath { h, start: x(0.0), end: x(h) };
+        let path = SpoolPath::new(h, x(0.0), x(h));
         let root = (-b + (b * b - 4.0 * a * c).sqrt()) / (2.0 * c);
         assert!(root > 0.0 && root < h);
         let found = path.null_crossing().expect("the ends lie on opposite sides");
         assert!((found - root).abs() < 1e-12 * h, "{found} vs {root}");
         // Ends on the same side (or one end at null): nothing to split.
-        assert_eq!(SpoolPath { h, start: x(0.0), end: x(0.5 * root) }.null_crossing(), None);
-        assert_eq!(SpoolPath { h, start: [0.0, b, 0.0], end: x(h) }.null_crossing(), None);
+        assert_eq!(SpoolPath::new(h, x(0.0), x(0.5 * root)).null_crossing(), None);
+        assert_eq!(SpoolPath::new(h, [0.0, b, 0.0], x(h)).null_crossing(), None);
     }
 }
