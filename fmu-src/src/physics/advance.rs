@@ -264,8 +264,8 @@ impl Physics {
                 };
                 // A guard whose slope already reaches zero inside the sub-step (a command
                 // step's slewing ends within nanoseconds): search at once, without first
-                // propagating over a sub-step that the event will cut.
-                // A state its propagator maps onto itself crosses nothing.
+                // propagating over a sub-step that the event will cut. A state that its
+                // propagator maps onto itself crosses nothing: no prediction needed.
                 let predicted =
                     if at_fixed_point && propagator.as_ref().is_some_and(|p| p.has_matrix()) {
                         f64::INFINITY
