@@ -13,7 +13,7 @@ mod scenario;
 
 use ehsv_actuator::model::Model;
 use ehsv_actuator::variables::{index_of, vr};
-use scenario::model;
+use scenario::{model, rsqrt};
 
 struct P {
     wn: f64,
@@ -80,15 +80,6 @@ impl P {
             p_s: g("p_supply"),
             f_ext: g("F_ext"),
         }
-    }
-}
-
-fn rsqrt(dp: f64, lam: f64) -> f64 {
-    if dp.abs() >= lam {
-        dp.signum() * dp.abs().sqrt()
-    } else {
-        let s = dp / lam;
-        lam.sqrt() * s * (1.25 - 0.25 * s * s)
     }
 }
 

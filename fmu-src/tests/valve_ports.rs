@@ -7,18 +7,7 @@
 mod scenario;
 
 use ehsv_actuator::variables::{index_of, vr};
-use scenario::{model, run};
-
-/// The signed square root of the orifice law, replaced below `lam` by the odd cubic that
-/// matches its value and slope there (the documented regularisation).
-fn rsqrt(dp: f64, lam: f64) -> f64 {
-    if dp.abs() >= lam {
-        dp.signum() * dp.abs().sqrt()
-    } else {
-        let s = dp / lam;
-        lam.sqrt() * s * (1.25 - 0.25 * s * s)
-    }
-}
+use scenario::{model, rsqrt, run};
 
 /// `(Q_A, Q_B)` by the orifice law, P->A and B->T open for `x_s >= 0`, A->T and P->B else.
 fn orifice_law(

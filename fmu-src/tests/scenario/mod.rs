@@ -87,3 +87,15 @@ pub fn area_b() -> f64 {
     let rod = start(ehsv_actuator::variables::vr::CYLINDER_ROD);
     area_a() - std::f64::consts::FRAC_PI_4 * rod * rod
 }
+
+/// The signed square root of the orifice law, replaced below `lam` by the odd cubic that
+/// matches its value and slope there (the documented regularisation), written again from
+/// the documentation for the tests' independent transcriptions of the ports.
+pub fn rsqrt(dp: f64, lam: f64) -> f64 {
+    if dp.abs() >= lam {
+        dp.signum() * dp.abs().sqrt()
+    } else {
+        let s = dp / lam;
+        lam.sqrt() * s * (1.25 - 0.25 * s * s)
+    }
+}
