@@ -49,7 +49,7 @@
 //!   `Q_A = 1.28 K3 x_s` at `p_S = dp_r`). `K3 x_s` is exact only for a symmetric cylinder.
 //!
 
-use super::params::{CylinderLoadParams, ValveParams};
+use super::params::{CylinderLoadParams, Outputs, ValveParams};
 use super::valve::port_flows;
 
 /// Number of states: `[p_A, p_B, x, v]`.
@@ -179,21 +179,6 @@ impl CylinderState {
     pub(crate) fn from_array(y: &[f64; N_STATES]) -> CylinderState {
         CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] }
     }
-}
-
-/// Outputs of the hydraulic side.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct CylinderOutputs {
-    /// Flow into chamber A (m3/s).
-    pub q_a: f64,
-    /// Flow out of chamber B (m3/s).
-    pub q_b: f64,
-    pub p_a: f64,
-    pub p_b: f64,
-    pub x_piston: f64,
-    pub v_piston: f64,
-    /// p_A*A_A - p_B*A_B (N).
-    pub f_hydraulic: f64,
 }
 
 /// Rest state at mid-stroke for a centred valve: `p_A + p_B = p_S + p_T` (the null of an
@@ -358,23 +343,20 @@ pub(crate) fn derivatives(
         + endstop_force(params, state.x, state.v);
     [dp_a, dp_b, state.v, force / params.mass]
 }
-/// All outputs at a state.
-pub(crate) fn outputs(
+/// Writes the hydraulic side's outputs at a state into `out`.
+pub(crate) fn write_outputs(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,
     p_supply: f64,
-) -> CylinderOutputs {
-    let (q_a, q_b) = port_flows(params, state, x_s, p_supply);
-    CylinderOutputs {
-        q_a,
-        q_b,
-        p_a: state.p_a,
-        p_b: state.p_b,
-        x_piston: state.x,
-        v_piston: state.v,
-        f_hydraulic: state.p_a * params.area_a() - state.p_b * params.area_b(),
-    }
+    out: &mut Outputs,
+) {
+    (out.q_a, out.q_b) = port_flows(params, state, x_s, p_supply);
+    out.p_a = state.p_a;
+    out.p_b = state.p_b;
+    out.x_piston = state.x;
+    out.v_piston = state.v;
+    out.f_hydraulic = state.p_a * params.area_a() - state.p_b * params.area_b();
 }
 
 /// Time from `y` to the first end-stop contact switch within `(0, span]`, from the Taylor

@@ -315,22 +315,18 @@ impl Physics {
     /// The outputs at the current state.
     pub(crate) fn outputs(&self) -> Outputs {
         let z = &self.z;
-        let c = cylinder::outputs(&self.params.cylinder, &self.cylinder, z[XS], self.p_supply);
-        Outputs {
+        let mut out = Outputs {
             i_coil: z[I],
             u_driver: z[U],
             driver_saturated: driver::saturated(&self.params, self.mode, &self.digital, z),
             x_flapper: z[XF],
             x_spool: z[XS],
             q_valve: valve::no_load_flow(&self.params, z[XS]),
-            q_a: c.q_a,
-            q_b: c.q_b,
-            p_a: c.p_a,
-            p_b: c.p_b,
-            x_piston: c.x_piston,
-            v_piston: c.v_piston,
-            f_hydraulic: c.f_hydraulic,
-        }
+            ..Outputs::default()
+        };
+        let c = &self.params.cylinder;
+        cylinder::write_outputs(c, &self.cylinder, z[XS], self.p_supply, &mut out);
+        out
     }
 }
 

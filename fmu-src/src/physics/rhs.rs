@@ -161,23 +161,18 @@ impl WholeModel {
     pub fn outputs(&self, held: &Held, y: &[f64; NY]) -> Outputs {
         let c = &self.c;
         let cyl = CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] };
-        let h = cylinder::outputs(&c.cylinder, &cyl, y[XS], held.p_supply);
         let u = self.driver_voltage(held, y);
-        Outputs {
+        let mut out = Outputs {
             i_coil: y[I],
             u_driver: u,
             driver_saturated: u.abs() >= held.rail,
             x_flapper: y[XF],
             x_spool: y[XS],
             q_valve: valve::no_load_flow(c, y[XS]),
-            q_a: h.q_a,
-            q_b: h.q_b,
-            p_a: h.p_a,
-            p_b: h.p_b,
-            x_piston: h.x_piston,
-            v_piston: h.v_piston,
-            f_hydraulic: h.f_hydraulic,
-        }
+            ..Outputs::default()
+        };
+        cylinder::write_outputs(&c.cylinder, &cyl, y[XS], held.p_supply, &mut out);
+        out
     }
 }
 
