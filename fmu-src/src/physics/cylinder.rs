@@ -50,6 +50,7 @@
 //!
 
 use super::params::{CylinderLoadParams, Outputs, ValveParams};
+use super::root_finding::newton_in_bracket;
 use super::valve::port_flows;
 
 /// Number of states: `[p_A, p_B, x, v]`.
@@ -391,29 +392,13 @@ pub(crate) fn next_contact_switch(
     let poly = |t: f64| g[0] + t * (g[1] + t * (0.5 * g[2] + t * g[3] / 6.0));
     let slope = |t: f64| g[1] + t * (g[2] + t * 0.5 * g[3]);
     let inside = g[0] > 0.0;
-    let crossed = |t: f64| (poly(t) > 0.0) != inside;
-    if !crossed(span) {
+    let crossed = |value: f64| (value > 0.0) != inside;
+    if !crossed(poly(span)) {
         // A double crossing within the span (touch and leave) is not looked for.
         return None;
     }
-    // The crossing lies in [lo, hi]; Newton, safeguarded by bisection.
-    let (mut lo, mut hi) = (0.0, span);
-    let mut t = if g[1] != 0.0 { -g[0] / g[1] } else { 0.5 * span };
-    for _ in 0..60 {
-        if !(t > lo && t < hi) {
-            t = 0.5 * (lo + hi);
-        }
-        if crossed(t) {
-            hi = t;
-        } else {
-            lo = t;
-        }
-        if hi - lo <= 1e-12 * hi {
-            break;
-        }
-        let d = slope(t);
-        t = if d != 0.0 { t - poly(t) / d } else { 0.5 * (lo + hi) };
-    }
+    let start = if g[1] != 0.0 { -g[0] / g[1] } else { 0.5 * span };
+    let (_, hi) = newton_in_bracket(|t| (poly(t), slope(t)), crossed, (0.0, span), start, 1e-12);
     Some(hi)
 }
 

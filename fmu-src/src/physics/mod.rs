@@ -19,6 +19,7 @@ mod outer_loop;
 mod params;
 mod retune;
 pub mod rhs;
+mod root_finding;
 mod rosenbrock;
 mod state;
 mod state_bytes;

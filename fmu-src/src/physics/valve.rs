@@ -10,6 +10,7 @@
 //!   cylinder ([`super::cylinder`]).
 
 use super::cylinder::{CylinderParams, CylinderState};
+use super::root_finding::newton_in_bracket;
 use super::state::{unit, Mat, Vector, I, ONE, VF, XF, XS};
 use super::Coefficients;
 
@@ -267,24 +268,13 @@ impl SpoolPath {
             return None;
         }
         let rising = x1 > 0.0;
-        let (mut lo, mut hi) = (0.0, self.h);
-        let mut t = self.h * x0 / (x0 - x1);
-        for _ in 0..60 {
-            if !(t > lo && t < hi) {
-                t = 0.5 * (lo + hi);
-            }
-            let x = self.position(t);
-            if (x > 0.0) == rising {
-                hi = t;
-            } else {
-                lo = t;
-            }
-            if hi - lo <= 4.0 * f64::EPSILON * hi {
-                break;
-            }
-            let rate = self.rate(t);
-            t = if rate != 0.0 { t - x / rate } else { 0.5 * (lo + hi) };
-        }
+        let (lo, hi) = newton_in_bracket(
+            |t| (self.position(t), self.rate(t)),
+            |x| (x > 0.0) == rising,
+            (0.0, self.h),
+            self.h * x0 / (x0 - x1),
+            4.0 * f64::EPSILON,
+        );
         let t = 0.5 * (lo + hi);
         (t > 1e-9 * self.h && t < (1.0 - 1e-9) * self.h).then_some(t)
     }
