@@ -278,9 +278,9 @@ pub(crate) fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, pass
 
 /// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
 /// guard and the state there. Searched in windows short enough for a Taylor polynomial
-/// of the exact solution; the first window ends a few times past `predicted`, the earliest
-/// crossing that the guards' slopes predict ([`predicted_crossing`]) (a command step's slewing ends within nanoseconds, and
-/// a window that short needs a few Taylor terms, not two dozen).
+/// of the exact solution. The first window ends a few times past `predicted`, the earliest
+/// crossing the guards' slopes predict ([`predicted_crossing`]): a command step's slewing
+/// ends within nanoseconds, and a window that short needs a few Taylor terms, not two dozen.
 pub(crate) fn locate_event(
     sys: &ModeSystem,
     z0: &Vector,
@@ -390,7 +390,9 @@ fn first_positive(coef: &[f64], w: f64, limit: f64) -> Option<f64> {
 /// The crossing of a polynomial inside `[lo, hi]` (p(lo) <= 0 < p(hi)), as the earliest
 /// instant found where p > 0, within a few roundings of the root. Safeguarded Newton from
 /// the secant point: a guard is nearly linear across one sample interval, so two or three
-/// iterations reach rounding (bisection to adjacent numbers took ~40 evaluations).
+/// iterations reach rounding (bisection to adjacent numbers took ~40 evaluations). Unlike
+/// `root_finding::newton_in_bracket` it also stops once Newton's step is below rounding,
+/// where the bracket may still be wide on one side, and then steps just past the root.
 fn refine_crossing(coef: &[f64], (mut lo, p_lo): (f64, f64), (mut hi, p_hi): (f64, f64)) -> f64 {
     let mut t = lo + (hi - lo) * (p_lo / (p_lo - p_hi));
     for _ in 0..REFINE_ITERATIONS {
