@@ -153,15 +153,16 @@ impl PropagatorCache {
 
     /// `system` names the (mode, stops) pair of `sys`. `exact`: key the sub-step by all
     /// its bits (whole communication steps: they repeat exactly, and a settled state then
-    /// maps onto itself bit for bit, which lets `evolve` skip it).
+    /// maps onto itself bit for bit, which lets `evolve` skip it). At least `min_substeps`.
     pub(crate) fn get(
         &mut self,
         system: usize,
         sys: &ModeSystem,
         span: f64,
         exact: bool,
+        min_substeps: usize,
     ) -> Result<Propagator<'_>, String> {
-        let substeps = sys.substeps(span, THETA_COARSE);
+        let substeps = sys.substeps(span, THETA_COARSE).max(min_substeps).min(MAX_SUBSTEPS);
         let h = span / substeps as f64;
         if h * sys.radius <= TAYLOR_ONLY {
             return Ok(Propagator { substeps, h, matrix: None, rest: 0.0 });
