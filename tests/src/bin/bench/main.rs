@@ -13,8 +13,9 @@
 //! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`.
 //!
 //! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the
-//! step-to-rest current does not end at 5 mA, or an output strays more than 1 % of its
-//! range from the reference (and 10x more than the reference from a tighter one).
+//! step-to-rest current does not end at 5 mA, an output strays more than 1 % of its range
+//! from the reference, or the peer (at rtol 1e-10 or tighter) more than 1e-5 of it (each
+//! where it is also 10x more than the reference from a tighter one).
 
 mod fmi;
 mod fmu_run;
@@ -34,6 +35,11 @@ use workloads::{Signal, Workload, I_AMPLITUDE};
 /// An output further than this fraction of its range from the reference (and 10x further
 /// than the reference from a tighter one) is an error.
 const DEVIATION_LIMIT: f64 = 1e-2;
+/// The peer's default tolerance: near the FMU's accuracy (see `docs/benchmark.md`).
+const PEER_RTOL: f64 = 1e-10;
+/// At [`PEER_RTOL`] or tighter, the peer further than this fraction of an output's range
+/// from the reference (and 10x further than the reference from a tighter one) is an error.
+const FIDELITY_LIMIT: f64 = 1e-5;
 /// The quadruped runs at this step only unless `--all-h`.
 const QUADRUPED_H: f64 = 1e-4;
 
@@ -74,7 +80,7 @@ fn parse() -> Result<Options, String> {
         versions: vec![Version::Fmi2, Version::Fmi3],
         only: None,
         repeat: 3,
-        peer_rtol: 1e-10,
+        peer_rtol: PEER_RTOL,
         reference_rtol: reference::REFERENCE_RTOL,
         peer: true,
         require_peer: false,
@@ -184,6 +190,19 @@ fn measure(
             Some(api) => Some(run_peer(o, api, w, h, steps, best.cpu, &reference)?),
             None => None,
         };
+        // The fidelity target: the model the FMU integrates stays within 1e-5 of each
+        // output's range of an independent tight-tolerance integration of its equations.
+        if let Some(p) = peer.as_ref().filter(|_| o.peer_rtol <= PEER_RTOL) {
+            let (dev, output) = p.deviation;
+            if dev.is_nan() || (dev > FIDELITY_LIMIT && dev > 10.0 * reference_spread.0) {
+                problems.push(format!(
+                    "{}: the peer at rtol {:e} deviates {dev:.2e} of {}'s range from the reference (limit {FIDELITY_LIMIT:e})",
+                    w.name,
+                    o.peer_rtol,
+                    workloads::OUTPUT_NAMES[output]
+                ));
+            }
+        }
         rows.push(Row {
             workload: w.name.clone(),
             h,
