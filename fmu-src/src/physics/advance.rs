@@ -260,15 +260,17 @@ impl Physics {
                 &self.systems[self.mode.index()]
             };
             // Between PWM edges the spans are short and irregular: a Taylor series beats
-            // exp() there. Otherwise equal sub-steps with a cached propagator.
+            // exp() there. Otherwise equal sub-steps with a cached propagator. Either way no
+            // sub-step is longer than a piece of spool path may be.
             let key = self.mode.index() + MODES.len() * self.stops.code();
+            let pieces = spool_path_pieces(span, self.params.wn);
             let propagator = if self.mode == Mode::Switched {
                 None
             } else {
-                let pieces = spool_path_pieces(span, self.params.wn);
                 Some(self.cache.get(key, sys, span, whole && done == 0.0, pieces)?)
             };
-            let (substeps, h) = propagator.as_ref().map_or((1, span), |p| (p.substeps, p.h));
+            let (substeps, h) =
+                propagator.as_ref().map_or((pieces, span / pieces as f64), |p| (p.substeps, p.h));
             for k in 0..substeps {
                 let settled = (key, h.to_bits(), z);
                 let at_fixed_point = self.fixed_point == Some(settled);
