@@ -296,3 +296,17 @@ fn absurd_but_finite_parameters_refuse_the_step_quickly() {
         assert_eq!(m.get(vr::I_COIL), Some(0.0));
     }
 }
+
+#[test]
+fn an_absurdly_slow_pwm_step_ends_quickly() {
+    // Spans of 500 s between switching instants: beyond what the Taylor series covers, so
+    // not cut into pieces of spool path either (16384 pieces of up to 16384 sub-steps each:
+    // 1.4 s here, 0.01 s whole), whatever the step then does.
+    let settings = [driver("hbridge_pid"), ("hbridge.f_pwm", 1e-3), ("hbridge.f_sample", 1e-3)];
+    let mut m = model(&settings);
+    m.set(vr::I_REF, 5e-3).unwrap();
+    let started = std::time::Instant::now();
+    let result = m.do_step(m.time(), 1e3);
+    let took = started.elapsed().as_secs_f64();
+    assert!(took < 1.0, "{took} s, {result:?}");
+}

@@ -14,9 +14,10 @@ const MERGE_SPAN: f64 = 1e-6;
 /// the quintic put the cylinder 2.4e-4 of Q_A's range off an independent integration.
 const SPOOL_PATH_ANGLE: f64 = 0.6;
 
-/// Sub-steps that keep each piece of spool path within [`SPOOL_PATH_ANGLE`] (`wn` in rad/s).
+/// Sub-steps that keep each piece of spool path within [`SPOOL_PATH_ANGLE`] (`wn` in rad/s),
+/// at most [`MAX_SUBSTEPS`] (a huge step stays bounded in time, its pieces coarser).
 fn spool_path_pieces(span: f64, wn: f64) -> usize {
-    (span * wn / SPOOL_PATH_ANGLE).ceil().clamp(1.0, usize::MAX as f64) as usize
+    (span * wn / SPOOL_PATH_ANGLE).ceil().clamp(1.0, MAX_SUBSTEPS as f64) as usize
 }
 
 /// The key of [`Physics`]'s `resting`: the inputs and the step size, as bits.
@@ -269,8 +270,13 @@ impl Physics {
             } else {
                 Some(self.cache.get(key, sys, span, whole && done == 0.0, pieces)?)
             };
-            let (substeps, h) =
-                propagator.as_ref().map_or((pieces, span / pieces as f64), |p| (p.substeps, p.h));
+            let (substeps, h) = match propagator {
+                Some(ref p) => (p.substeps, p.h),
+                // A span longer than the Taylor series' own MAX_SUBSTEPS pieces cover (an
+                // absurdly slow PWM) stays whole, or the work would grow without bound.
+                None if sys.substeps(span, 1.0) < MAX_SUBSTEPS => (pieces, span / pieces as f64),
+                None => (1, span),
+            };
             for k in 0..substeps {
                 let settled = (key, h.to_bits(), z);
                 let at_fixed_point = self.fixed_point == Some(settled);

@@ -25,7 +25,7 @@ const THETA_COARSE: f64 = 6.0;
 /// Largest |A h|_1 handed to exp() (see `PropagatorCache::get`).
 const MAX_SCALED_NORM: f64 = 1e25;
 /// Sub-steps per propagation at most (a 1e6 s step stays well under a second).
-const MAX_SUBSTEPS: usize = 1 << 14;
+pub(crate) const MAX_SUBSTEPS: usize = 1 << 14;
 /// Driver guards (4) + flapper stop guards (2) + spool stop guards (2).
 const MAX_GUARDS: usize = 8;
 const CACHE_SLOTS: usize = 32;
@@ -153,7 +153,8 @@ impl PropagatorCache {
 
     /// `system` names the (mode, stops) pair of `sys`. `exact`: key the sub-step by all
     /// its bits (whole communication steps: they repeat exactly, and a settled state then
-    /// maps onto itself bit for bit, which lets `evolve` skip it). At least `min_substeps`.
+    /// maps onto itself bit for bit, which lets `evolve` skip it). At least `min_substeps`
+    /// (at most [`MAX_SUBSTEPS`]).
     pub(crate) fn get(
         &mut self,
         system: usize,
@@ -162,7 +163,7 @@ impl PropagatorCache {
         exact: bool,
         min_substeps: usize,
     ) -> Result<Propagator<'_>, String> {
-        let substeps = sys.substeps(span, THETA_COARSE).max(min_substeps).min(MAX_SUBSTEPS);
+        let substeps = sys.substeps(span, THETA_COARSE).max(min_substeps);
         let h = span / substeps as f64;
         if h * sys.radius <= TAYLOR_ONLY {
             return Ok(Propagator { substeps, h, matrix: None, rest: 0.0 });

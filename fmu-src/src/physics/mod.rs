@@ -34,6 +34,7 @@ use cylinder::{CylinderParams, CylinderState};
 use driver::{Mode, MODES};
 use exact_integrator::{
     locate_event, may_cross, predicted_crossing, taylor_propagate, ModeSystem, PropagatorCache,
+    MAX_SUBSTEPS,
 };
 use hbridge::Digital;
 use outer_loop::{LoopParams, OuterLoop};
