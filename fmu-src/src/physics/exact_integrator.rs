@@ -320,9 +320,11 @@ pub(crate) fn locate_event(
         if let Some((mut tau, g)) = first {
             // The state handed on must be past the crossing as the mode logic evaluates it
             // (on the vector, not the polynomial), or the mode may not change and the guard
-            // would be passed over: nudge forward past the rounding.
+            // would be passed over: nudge forward past the rounding. From 8 ulp of the
+            // window: starting at 1 took ~4 evaluations of the state per event (gait: 2.6 %
+            // of its instructions) for a shift of the event below 1e-14 of the window.
             let mut at = horner_vec(terms, tau);
-            let mut nudge = f64::EPSILON * w;
+            let mut nudge = 8.0 * f64::EPSILON * w;
             while sys.guards[g].dot(&at) <= 0.0 && tau < w {
                 tau = (tau + nudge).min(w);
                 at = horner_vec(terms, tau);
