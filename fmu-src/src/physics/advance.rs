@@ -14,10 +14,11 @@ const MERGE_SPAN: f64 = 1e-6;
 /// the quintic put the cylinder 2.4e-4 of Q_A's range off an independent integration.
 const SPOOL_PATH_ANGLE: f64 = 0.6;
 
-/// Sub-steps that keep each piece of spool path within [`SPOOL_PATH_ANGLE`] (`wn` in rad/s),
-/// at most [`MAX_SUBSTEPS`] (a huge step stays bounded in time, its pieces coarser).
+/// Sub-steps that keep each piece of spool path within [`SPOOL_PATH_ANGLE`] (`wn` in
+/// rad/s); the propagators bound them (a huge step stays bounded in time, its pieces coarser).
 fn spool_path_pieces(span: f64, wn: f64) -> usize {
-    (span * wn / SPOOL_PATH_ANGLE).ceil().clamp(1.0, MAX_SUBSTEPS as f64) as usize
+    // The cast saturates: an overflowing count is bounded where it is used.
+    (span * wn / SPOOL_PATH_ANGLE).ceil().max(1.0) as usize
 }
 
 /// The key of [`Physics`]'s `resting`: the inputs and the step size, as bits.
@@ -260,31 +261,24 @@ impl Physics {
             } else {
                 &self.systems[self.mode.index()]
             };
-            // Between PWM edges the spans are short and irregular: a Taylor series beats
-            // exp() there. Otherwise equal sub-steps with a cached propagator. Either way no
-            // sub-step is longer than a piece of spool path may be.
+            // Between PWM edges by Taylor series, otherwise with a cached propagator; either
+            // way no sub-step longer than a piece of spool path may be.
             let key = self.mode.index() + MODES.len() * self.stops.code();
             let pieces = spool_path_pieces(span, self.params.wn);
             let propagator = if self.mode == Mode::Switched {
-                None
+                Propagator::taylor_only(sys, span, pieces)
             } else {
-                Some(self.cache.get(key, sys, span, whole && done == 0.0, pieces)?)
+                self.cache.get(key, sys, span, whole && done == 0.0, pieces)?
             };
-            let (substeps, h) = match propagator {
-                Some(ref p) => (p.substeps, p.h),
-                // A span longer than the Taylor series' own MAX_SUBSTEPS pieces cover (an
-                // absurdly slow PWM) stays whole, or the work would grow without bound.
-                None if sys.substeps(span, 1.0) < MAX_SUBSTEPS => (pieces, span / pieces as f64),
-                None => (1, span),
-            };
+            let (substeps, h) = (propagator.substeps, propagator.h);
             for k in 0..substeps {
                 let settled = (key, h.to_bits(), z);
                 let at_fixed_point = self.fixed_point == Some(settled);
                 let propagate = |z: &Vector| {
-                    let mut next = match propagator {
-                        Some(ref p) if p.has_matrix() && at_fixed_point => *z,
-                        Some(ref p) => p.apply(sys, z),
-                        None => taylor_propagate(sys, z, h),
+                    let mut next = if propagator.has_matrix() && at_fixed_point {
+                        *z
+                    } else {
+                        propagator.apply(sys, z)
                     };
                     driver::project_onto(&self.params, &self.digital, &mut next, self.mode);
                     next
@@ -293,19 +287,18 @@ impl Physics {
                 // step's slewing ends within nanoseconds): search at once, without first
                 // propagating over a sub-step that the event will cut. A state that its
                 // propagator maps onto itself crosses nothing: no prediction needed.
-                let predicted =
-                    if at_fixed_point && propagator.as_ref().is_some_and(|p| p.has_matrix()) {
-                        f64::INFINITY
-                    } else {
-                        predicted_crossing(sys, &z, passed)
-                    };
+                let predicted = if at_fixed_point && propagator.has_matrix() {
+                    f64::INFINITY
+                } else {
+                    predicted_crossing(sys, &z, passed)
+                };
                 let next = (predicted >= h).then(|| propagate(&z));
                 let search = match next {
                     None => true,
                     // A stable system that returns to its state bit for bit is at rest: no
                     // guard can have crossed on the way.
                     Some(next) if next == z => {
-                        if propagator.as_ref().is_some_and(|p| p.has_matrix()) {
+                        if propagator.has_matrix() {
                             self.fixed_point = Some(settled);
                         }
                         false

@@ -25,7 +25,7 @@ const THETA_COARSE: f64 = 6.0;
 /// Largest |A h|_1 handed to exp() (see `PropagatorCache::get`).
 const MAX_SCALED_NORM: f64 = 1e25;
 /// Sub-steps per propagation at most (a 1e6 s step stays well under a second).
-pub(crate) const MAX_SUBSTEPS: usize = 1 << 14;
+const MAX_SUBSTEPS: usize = 1 << 14;
 /// Driver guards (4) + flapper stop guards (2) + spool stop guards (2).
 const MAX_GUARDS: usize = 8;
 const CACHE_SLOTS: usize = 32;
@@ -116,6 +116,19 @@ pub(crate) struct Propagator<'a> {
 }
 
 impl Propagator<'_> {
+    /// Sub-steps by Taylor series alone (the H-bridge's switched spans: short and
+    /// irregular, where a series beats exp()), at least `min_substeps`. A span longer than
+    /// the series covers in [`MAX_SUBSTEPS`] pieces of its own (an absurdly slow PWM) stays
+    /// one sub-step, or the work would grow without bound.
+    pub(crate) fn taylor_only(sys: &ModeSystem, span: f64, min_substeps: usize) -> Self {
+        let substeps = if sys.substeps(span, 1.0) < MAX_SUBSTEPS {
+            min_substeps.clamp(1, MAX_SUBSTEPS)
+        } else {
+            1
+        };
+        Propagator { substeps, h: span / substeps as f64, matrix: None, rest: 0.0 }
+    }
+
     /// One sub-step from `z`.
     pub(crate) fn apply(&self, sys: &ModeSystem, z: &Vector) -> Vector {
         match self.matrix {
@@ -154,7 +167,7 @@ impl PropagatorCache {
     /// `system` names the (mode, stops) pair of `sys`. `exact`: key the sub-step by all
     /// its bits (whole communication steps: they repeat exactly, and a settled state then
     /// maps onto itself bit for bit, which lets `evolve` skip it). At least `min_substeps`
-    /// (at most [`MAX_SUBSTEPS`]).
+    /// sub-steps (as far as [`MAX_SUBSTEPS`]).
     pub(crate) fn get(
         &mut self,
         system: usize,
@@ -163,7 +176,7 @@ impl PropagatorCache {
         exact: bool,
         min_substeps: usize,
     ) -> Result<Propagator<'_>, String> {
-        let substeps = sys.substeps(span, THETA_COARSE).max(min_substeps);
+        let substeps = sys.substeps(span, THETA_COARSE).max(min_substeps.min(MAX_SUBSTEPS));
         let h = span / substeps as f64;
         if h * sys.radius <= TAYLOR_ONLY {
             return Ok(Propagator { substeps, h, matrix: None, rest: 0.0 });
@@ -200,7 +213,7 @@ impl PropagatorCache {
 
 /// exp(A t) z by its Taylor series, in pieces with |lambda| h <= 1, each summed until
 /// (|lambda| h)^k / k! is below rounding.
-pub(crate) fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
+fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
     let pieces = sys.substeps(span, 1.0);
     let h = span / pieces as f64;
     let terms = taylor_terms(sys.radius * h);

@@ -33,8 +33,7 @@ pub use params::{
 use cylinder::{CylinderParams, CylinderState};
 use driver::{Mode, MODES};
 use exact_integrator::{
-    locate_event, may_cross, predicted_crossing, taylor_propagate, ModeSystem, PropagatorCache,
-    MAX_SUBSTEPS,
+    locate_event, may_cross, predicted_crossing, ModeSystem, Propagator, PropagatorCache,
 };
 use hbridge::Digital;
 use outer_loop::{LoopParams, OuterLoop};
