@@ -141,6 +141,20 @@ pub struct Work {
 }
 
 impl Work {
+    /// The work done between `earlier` (a reading of the same instance) and `self`.
+    pub fn since(&self, earlier: &Work) -> Work {
+        Work {
+            cylinder_calls: self.cylinder_calls - earlier.cylinder_calls,
+            steps_accepted: self.steps_accepted - earlier.steps_accepted,
+            steps_rejected: self.steps_rejected - earlier.steps_rejected,
+            jacobians: self.jacobians - earlier.jacobians,
+            factorisations: self.factorisations - earlier.factorisations,
+            function_evaluations: self.function_evaluations - earlier.function_evaluations,
+            exponentials: self.exponentials - earlier.exponentials,
+            guard_locations: self.guard_locations - earlier.guard_locations,
+        }
+    }
+
     fn add(&mut self, stats: &rosenbrock::Stats) {
         self.cylinder_calls += 1;
         self.steps_accepted += stats.accepted as u64;

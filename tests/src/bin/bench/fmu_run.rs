@@ -3,7 +3,7 @@
 
 use crate::fmi::{Fmu, Slave};
 use crate::reference::Trace;
-use crate::timing::{Samples, Stopwatch, Summary};
+use crate::timing::{Samples, Stopwatch};
 use crate::workloads::{Workload, INPUTS, OUTPUTS};
 
 /// One run of a workload.
@@ -11,9 +11,10 @@ pub struct FmuRun {
     /// Wall and thread-CPU seconds of the whole stepping loop (all instances).
     pub wall: f64,
     pub cpu: f64,
-    /// Per-doStep wall and thread-CPU time (timed runs only; every instance's calls).
-    pub step_wall: Option<Summary>,
-    pub step_cpu: Option<Summary>,
+    /// Per-doStep wall and thread-CPU time in call order (empty unless timed; every
+    /// instance's calls: step after step, leg after leg).
+    pub step_wall: Samples,
+    pub step_cpu: Samples,
     /// Outputs of the first instance after every step.
     pub trace: Trace,
 }
@@ -61,11 +62,5 @@ pub fn run(
         }
     }
     let (wall, cpu) = clock.read();
-    Ok(FmuRun {
-        wall,
-        cpu,
-        step_wall: timed.then(|| wall_samples.summary()),
-        step_cpu: timed.then(|| cpu_samples.summary()),
-        trace,
-    })
+    Ok(FmuRun { wall, cpu, step_wall: wall_samples, step_cpu: cpu_samples, trace })
 }

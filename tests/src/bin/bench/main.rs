@@ -7,7 +7,8 @@
 //!
 //! Options: `--quick` (0.02 s, h = 1e-4, one run: the smoke test of
 //! scripts/test.sh), `--t-end S` (default 2), `--h 1e-4,1e-3` (default 1e-3,1e-4,1e-5),
-//! `--fmi 2|3|both`, `--only NAME,NAME`, `--repeat N` (untimed runs, best RTF; default 3),
+//! `--fmi 2|3|both`, `--only NAME,NAME`, `--repeat N` (untimed runs, best RTF, and timed runs,
+//! per-call shortest; default 3),
 //! `--peer-rtol R` (default 1e-10, where the peer's accuracy comes near the FMU's),
 //! `--reference-rtol R` (default 1e-10), `--no-peer`, `--require-peer` (fail if CVODE cannot
 //! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`.
@@ -161,7 +162,31 @@ fn measure(
             }
         }
         let best = best.unwrap();
+        // Timed runs: the first run's slowest calls show what this machine did to them; the
+        // shortest time of each call over `repeat` runs is the work it takes.
         let timed = fmu_run::run(fmu, w, h, steps, true)?;
+        let mut least = timed.step_cpu.clone();
+        for _ in 1..o.repeat {
+            least.keep_shorter(&fmu_run::run(fmu, w, h, steps, true)?.step_cpu);
+        }
+        let step_cpu = least.summary();
+        // Either FMI version runs the same computation: diagnosed once.
+        let slowest = if first_trace.is_none() {
+            let legs = w.legs.len();
+            let diagnose = |call: usize, cpu: f64| -> Result<report::SlowStep, String> {
+                let (k, leg) = (call / legs, call % legs);
+                let work = reference::work_of_step(w, w.legs[leg], h, k)?;
+                Ok(report::SlowStep { cpu, t: k as f64 * h, leg, work })
+            };
+            // The first step builds the propagators: the slowest after it, too.
+            let later = match least.slowest_from(legs) {
+                Some((call, cpu)) if call != step_cpu.slowest => Some(diagnose(call, cpu)?),
+                _ => None,
+            };
+            Some((diagnose(step_cpu.slowest, step_cpu.max)?, later))
+        } else {
+            None
+        };
         if let Some(first) = &first_trace {
             if *first != best.trace {
                 return Err(format!("{}: FMI 2 and FMI 3 outputs differ at h = {h}", w.name));
@@ -217,8 +242,10 @@ fn measure(
             version: fmu.version(),
             rtf_wall: sim_time / best.wall,
             rtf_cpu: sim_time / best.cpu,
-            step_cpu: timed.step_cpu.unwrap_or_default(),
-            step_wall: timed.step_wall.unwrap_or_default(),
+            step_cpu,
+            step_cpu_one_run: timed.step_cpu.summary().max,
+            step_wall: timed.step_wall.summary(),
+            slowest,
             deviation: Some(dev),
             reference_spread,
             work,
@@ -314,6 +341,7 @@ fn main() -> ExitCode {
     report::header();
     let mut failed = false;
     let mut problems = Vec::new();
+    let mut slowest = Vec::new();
     for &h in &o.steps {
         for w in workloads::all() {
             if o.only.as_ref().is_some_and(|names| !names.split(',').any(|n| n == w.name)) {
@@ -323,7 +351,10 @@ fn main() -> ExitCode {
                 continue;
             }
             match measure(&o, &fmus, cvode.as_ref(), &w, h, &mut problems) {
-                Ok(rows) => rows.iter().for_each(report::print),
+                Ok(rows) => {
+                    rows.iter().for_each(report::print);
+                    slowest.extend(rows.iter().filter_map(report::slowest_steps));
+                }
                 Err(e) => {
                     eprintln!("bench: {}, h = {h}: {e}", w.name);
                     failed = true;
@@ -333,6 +364,9 @@ fn main() -> ExitCode {
     }
     println!();
     println!("{}", report::LEGEND);
+    println!();
+    println!("{}", report::SLOWEST_HEADER);
+    slowest.iter().for_each(|line| println!("{line}"));
     for p in &problems {
         eprintln!("bench: {p}");
     }

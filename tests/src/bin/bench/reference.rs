@@ -8,6 +8,8 @@
 //! state body). The reference takes the state bytes after initialisation, replaces rtol
 //! and restores them, so nothing in the FMU changes for the benchmark.
 
+use std::ops::Range;
+
 use ehsv_actuator::model::Model;
 use ehsv_actuator::physics::Work;
 
@@ -68,19 +70,32 @@ pub fn run(
     steps: usize,
     rtol: f64,
 ) -> Result<Trace, String> {
-    Ok(run_model(start(workload, Some(rtol))?, signal, h, steps)?.0)
+    Ok(run_model(&mut start(workload, Some(rtol))?, signal, h, 0..steps)?.0)
 }
 
 /// The work the FMU's integrators do on one signal of `workload` (the same computation as
 /// through the C API, at the FMU's own tolerance, through the rlib, which can read it).
 pub fn fmu_work(workload: &Workload, signal: Signal, h: f64, steps: usize) -> Result<Work, String> {
-    Ok(run_model(start(workload, None)?, signal, h, steps)?.1)
+    Ok(run_model(&mut start(workload, None)?, signal, h, 0..steps)?.1)
 }
 
-fn run_model(mut m: Model, signal: Signal, h: f64, steps: usize) -> Result<(Trace, Work), String> {
-    let mut trace = Trace::with_capacity(steps);
+/// The work of the FMU's integrators in step `k` alone: what makes that doStep cost what it does.
+pub fn work_of_step(workload: &Workload, signal: Signal, h: f64, k: usize) -> Result<Work, String> {
+    let mut m = start(workload, None)?;
+    run_model(&mut m, signal, h, 0..k)?;
+    Ok(run_model(&mut m, signal, h, k..k + 1)?.1)
+}
+
+/// Steps `steps` (indices on the grid of `h`) of `m`: the outputs after each and the work done.
+fn run_model(
+    m: &mut Model,
+    signal: Signal,
+    h: f64,
+    steps: Range<usize>,
+) -> Result<(Trace, Work), String> {
+    let mut trace = Trace::with_capacity(steps.len());
     let before = m.work();
-    for k in 0..steps {
+    for k in steps {
         let t = k as f64 * h;
         for (vr, value) in INPUTS.iter().zip(signal.inputs(t)) {
             m.set(*vr, value)?;
@@ -88,17 +103,7 @@ fn run_model(mut m: Model, signal: Signal, h: f64, steps: usize) -> Result<(Trac
         m.do_step(t, h)?; // the master's time base, as through the C API
         trace.push(OUTPUTS.map(|vr| m.get(vr).unwrap()));
     }
-    let after = m.work();
-    let work = Work {
-        cylinder_calls: after.cylinder_calls - before.cylinder_calls,
-        steps_accepted: after.steps_accepted - before.steps_accepted,
-        steps_rejected: after.steps_rejected - before.steps_rejected,
-        jacobians: after.jacobians - before.jacobians,
-        factorisations: after.factorisations - before.factorisations,
-        function_evaluations: after.function_evaluations - before.function_evaluations,
-        exponentials: after.exponentials - before.exponentials,
-        guard_locations: after.guard_locations - before.guard_locations,
-    };
+    let work = m.work().since(&before);
     Ok((trace, work))
 }
 

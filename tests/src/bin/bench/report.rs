@@ -15,9 +15,14 @@ pub struct Row {
     /// Best real-time factor over the untimed runs: wall, thread CPU.
     pub rtf_wall: f64,
     pub rtf_cpu: f64,
-    /// Per-doStep thread CPU and wall time.
+    /// Per-doStep thread CPU time, each call's shortest over the timed runs.
     pub step_cpu: Summary,
+    /// The slowest doStep of the first timed run in thread CPU time, and its calls' wall time.
+    pub step_cpu_one_run: f64,
     pub step_wall: Summary,
+    /// The slowest doStep (of `step_cpu`) and, if that was the first, the slowest after it;
+    /// for the first FMI version only.
+    pub slowest: Option<(SlowStep, Option<SlowStep>)>,
     /// Worst output deviation from the reference as a fraction of its range, and which.
     pub deviation: Option<(f64, usize)>,
     /// The same for the reference against a 10x tighter one (how converged the yardstick is).
@@ -25,6 +30,15 @@ pub struct Row {
     /// The FMU's integrator work on the workload's first leg.
     pub work: WorkSummary,
     pub peer: Option<PeerSummary>,
+}
+
+/// A slow doStep: its thread CPU time, where it starts, which leg, and the work of the FMU's
+/// integrators in it.
+pub struct SlowStep {
+    pub cpu: f64,
+    pub t: f64,
+    pub leg: usize,
+    pub work: Work,
 }
 
 /// The FMU's integrator work per communication point.
@@ -107,7 +121,7 @@ fn deviation(d: Option<(f64, usize)>) -> String {
 
 pub fn header() {
     println!(
-        "{:<22} {:>5} {:>4} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6} {:>6} {:>6} {:>6} {:>6} | {:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}",
+        "{:<22} {:>5} {:>4} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6} {:>6} {:>6} {:>6} {:>6} | {:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}",
         "workload",
         "h",
         "FMI",
@@ -116,6 +130,7 @@ pub fn header() {
         "mean",
         "p99.9",
         "max",
+        "max1",
         "maxwall",
         "dev/range",
         "ref spread",
@@ -151,7 +166,7 @@ pub fn print(row: &Row) {
         }
     };
     println!(
-        "{:<22} {:>5.0e} {:>4} {:>7.1} {:>7.1} {:>7} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6.2} {:>6.2} {:>6.2} {:>6.3} {:>6.2} | {peer}",
+        "{:<22} {:>5.0e} {:>4} {:>7.1} {:>7.1} {:>7} {:>8} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6.2} {:>6.2} {:>6.2} {:>6.3} {:>6.2} | {peer}",
         row.workload,
         row.h,
         row.version.label(),
@@ -160,6 +175,7 @@ pub fn print(row: &Row) {
         us(row.step_cpu.mean),
         us(row.step_cpu.p999),
         us(row.step_cpu.max),
+        us(row.step_cpu_one_run),
         us(row.step_wall.max),
         deviation(row.deviation),
         deviation(Some(row.reference_spread)),
@@ -174,8 +190,11 @@ pub fn print(row: &Row) {
 pub const LEGEND: &str = "\
 RTF: simulated time / wall time of the best untimed run (all instances; doStep + SetReal of 4
   inputs + GetReal of 12 outputs per instance and step); RTFcpu: the same on thread CPU time.
-mean, p99.9, max: one doStep in thread CPU time (CLOCK_THREAD_CPUTIME_ID) [us]; maxwall: the
-  worst in wall time (the difference is preemption). Timed separately (two clock reads per call).
+mean, p99.9, max: one doStep in thread CPU time (CLOCK_THREAD_CPUTIME_ID) [us], each call's
+  shortest over the timed runs (as many as --repeat): the work of the call. max1: the slowest
+  call of one timed run (on a shared machine interrupts and hypervisor stalls are charged to
+  the running thread); maxwall: its slowest in wall time (the difference is preemption). Timed
+  runs are separate from the untimed ones (two clock reads per call).
 dev/range: worst max|output - reference| / range of that output over the run; reference: the
   same model through the rlib at cylinder rtol 1e-10 (the FMU runs 1e-7), same grid and inputs.
 ref spread: the same measure between that reference and one at rtol 1e-11: where it is not small
@@ -187,3 +206,33 @@ peer: SUNDIALS CVODE (BDF, Newton, dense LU, DQ Jacobian) on the same equations,
 st/pt, jac/pt, LU/pt, exp/pt, loc/pt before the bar: the FMU's own work per communication point
   (`Model::work()` through the rlib on the same run): cylinder Rosenbrock steps (accepted and
   rejected), Jacobians, LU factorisations, 9x9 matrix exponentials, state-event searches.";
+
+pub const SLOWEST_HEADER: &str = "\
+The slowest doStep of each row (its `max`) and, where that was the first step (which builds
+the propagators), the slowest after it; the work of the FMU's integrators in that step (through
+the rlib): cylinder Rosenbrock steps accepted + rejected, state-event searches, 9x9 matrix
+exponentials.";
+
+fn slow_step(s: &SlowStep) -> String {
+    let leg = if s.leg > 0 { format!(", leg {}", s.leg) } else { String::new() };
+    format!(
+        "{} us at t = {:.4} s{leg}: {} + {} Rosenbrock steps, {} event searches, {} exponentials",
+        us(s.cpu),
+        s.t,
+        s.work.steps_accepted,
+        s.work.steps_rejected,
+        s.work.guard_locations,
+        s.work.exponentials,
+    )
+}
+
+/// The lines on the slowest doSteps of `row`, if they were diagnosed.
+pub fn slowest_steps(row: &Row) -> Option<String> {
+    let (slowest, later) = row.slowest.as_ref()?;
+    let head = format!("  {:<22} {:>5.0e}: ", row.workload, row.h);
+    let mut text = format!("{head}{}", slow_step(slowest));
+    if let Some(later) = later {
+        text += &format!("\n  {:<28}  after it: {}", "", slow_step(later));
+    }
+    Some(text)
+}

@@ -13,17 +13,19 @@ pub fn thread_cpu() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
-/// Durations of single calls (s), collected into a buffer allocated up front.
+/// Durations of single calls (s) in call order, collected into a buffer allocated up front.
+#[derive(Clone)]
 pub struct Samples {
     values: Vec<f64>,
 }
 
-/// Mean, 99.9th percentile and maximum of the samples (s).
+/// Mean, 99.9th percentile and maximum of the samples (s), and which call took the maximum.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Summary {
     pub mean: f64,
     pub p999: f64,
     pub max: f64,
+    pub slowest: usize,
 }
 
 impl Samples {
@@ -36,15 +38,33 @@ impl Samples {
         self.values.push(seconds);
     }
 
-    pub fn summary(&mut self) -> Summary {
+    /// Keeps, call by call, the shorter of this run's time and `other`'s (another run of the
+    /// same calls): what each call costs without the interrupts and hypervisor stalls that a
+    /// busy machine charges to whichever call is running.
+    pub fn keep_shorter(&mut self, other: &Samples) {
+        for (mine, theirs) in self.values.iter_mut().zip(&other.values) {
+            *mine = mine.min(*theirs);
+        }
+    }
+
+    /// The slowest call from call `first` on: its index and time.
+    pub fn slowest_from(&self, first: usize) -> Option<(usize, f64)> {
+        (first..self.values.len())
+            .max_by(|&a, &b| self.values[a].total_cmp(&self.values[b]))
+            .map(|k| (k, self.values[k]))
+    }
+
+    pub fn summary(&self) -> Summary {
         if self.values.is_empty() {
             return Summary::default();
         }
         let n = self.values.len();
         let mean = self.values.iter().sum::<f64>() / n as f64;
-        self.values.sort_by(f64::total_cmp);
+        let slowest = self.slowest_from(0).map_or(0, |(k, _)| k);
+        let mut sorted = self.values.clone();
+        sorted.sort_by(f64::total_cmp);
         let rank = ((0.999 * n as f64).ceil() as usize).clamp(1, n) - 1;
-        Summary { mean, p999: self.values[rank], max: self.values[n - 1] }
+        Summary { mean, p999: sorted[rank], max: sorted[n - 1], slowest }
     }
 }
 
