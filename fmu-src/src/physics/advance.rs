@@ -204,7 +204,7 @@ impl Physics {
             return Ok(());
         }
         let a = &sys.a;
-        let (az0, az1) = (a * z0, a * z1);
+        let (az0, az1) = (state::rate(a, z0), state::rate(a, z1));
         let path = SpoolPath::new(
             h,
             [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],

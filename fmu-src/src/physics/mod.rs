@@ -364,3 +364,28 @@ impl Physics {
         Ok(events)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `state::rate` and `state::propagate` compute only the evolving rows: no mode may give
+    /// the held constants dynamics, and over a step they must come out as they went in.
+    #[test]
+    fn no_mode_moves_the_held_constants() {
+        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let z = Vector::from_fn(|k, _| 0.3 + k as f64);
+        for mode in MODES {
+            let a = dynamics(&c, mode);
+            for row in state::EVOLVING..state::N {
+                assert!(a.row(row).iter().all(|&x| x == 0.0), "{mode:?} moves constant {row}");
+            }
+            let full = a * z;
+            assert!((state::rate(&a, &z) - full).norm() <= 1e-12 * full.norm(), "{mode:?}");
+            let p = (a * 1e-4).exp();
+            let stepped = state::propagate(&p, &z);
+            assert!((stepped - p * z).norm() <= 1e-12 * z.norm(), "{mode:?}");
+            assert_eq!(stepped.rows(state::EVOLVING, 3), z.rows(state::EVOLVING, 3));
+        }
+    }
+}

@@ -33,3 +33,32 @@ pub(crate) fn unit(k: usize) -> Vector {
     r[k] = 1.0;
     r
 }
+
+/// States that evolve; the three after them are held constants (zero rows of every `A`).
+pub(crate) const EVOLVING: usize = 6;
+
+/// `a z` for a dynamics matrix, whose constants' rows are zero: only the evolving rows are
+/// computed (two thirds of a full product; the event search and the Taylor series are made of these).
+#[inline]
+pub(crate) fn rate(a: &Mat, z: &Vector) -> Vector {
+    let columns = a.as_slice();
+    let mut out = Vector::zeros();
+    for (c, &zc) in z.iter().enumerate() {
+        let column = &columns[c * N..c * N + EVOLVING];
+        for (o, &a_rc) in out.iter_mut().zip(column) {
+            *o += a_rc * zc;
+        }
+    }
+    out
+}
+
+/// `p z` for a propagator `exp(A t)` (constant rows those of the identity): the constants
+/// are carried over exactly.
+#[inline]
+pub(crate) fn propagate(p: &Mat, z: &Vector) -> Vector {
+    let mut out = rate(p, z);
+    for r in EVOLVING..N {
+        out[r] = z[r];
+    }
+    out
+}
