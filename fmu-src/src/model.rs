@@ -502,6 +502,7 @@ pub(crate) fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
             flow: pid(vr::FLOW_KP, vr::FLOW_KI, vr::FLOW_KD),
             position: pid(vr::POSITION_KP, vr::POSITION_KI, vr::POSITION_KD),
         },
+        solver_rtol: v[vr::SOLVER_RTOL],
     })
 }
 

@@ -477,6 +477,11 @@ variable_table! {
         .non_negative(),
     RELIEF_DP_OVERRIDE => param("relief.dp_override", Some("Pa"), 1.0e6, "Pressure override: rise above the cracking pressure at which a relief valve passes its rated flow").positive(),
     RELIEF_Q_RATED => param("relief.Q_rated", Some("m3/s"), 4.0e-4, "Rated flow of each relief valve, reached at relief.p_crack + relief.dp_override").positive(),
+    // Accuracy against speed (appended). 1e-7 keeps every output within ~1e-6 of its range
+    // of a tight reference (docs/benchmark.md); looser settings are for hardware-in-the-loop
+    // budgets, tighter ones for references. Past 1e-3 the error control means nothing.
+    SOLVER_RTOL => param("solver.rtol", None, 1.0e-7, "Relative tolerance of the cylinder's Rosenbrock integrator (errors weighed against rtol*max(|y|, 1 MPa / 10 mm / 0.1 m/s)); driver, coil and valve are exact at any setting")
+        .range(Some(1.0e-12), Some(1.0e-3)),
 }
 
 /// Index of the variable with this name.
@@ -543,7 +548,7 @@ mod tests {
         }
         assert_eq!(VARIABLES[vr::COIL_K_B].name, "coil.K_b");
         assert_eq!(VARIABLES[vr::POSITION_KD].name, "position.Kd");
-        assert_eq!(N_VARIABLES, 79);
+        assert_eq!(N_VARIABLES, 80);
     }
 
     #[test]

@@ -155,6 +155,45 @@ fn cylinder_outputs_do_not_depend_on_the_communication_step() {
 }
 
 #[test]
+fn solver_rtol_trades_cylinder_accuracy_for_work() {
+    // The piston starts, runs and reverses at 1e-4 s steps; outputs against a run at rtol
+    // 1e-10, as fractions of their ranges, and the Rosenbrock steps each tolerance takes.
+    let outputs = [vr::Q_A, vr::Q_B, vr::P_A, vr::P_B, vr::X_PISTON, vr::V_PISTON];
+    let run_at = |rtol: f64| {
+        let mut m = model(&[("solver.rtol", rtol)]);
+        m.set(vr::I_REF, 5e-3).unwrap();
+        let mut trace = run(&mut m, 15e-3, 1e-4, &outputs);
+        m.set(vr::I_REF, -5e-3).unwrap();
+        trace.extend(run(&mut m, 15e-3, 1e-4, &outputs).into_iter().skip(1));
+        let work = m.work();
+        (trace, work.steps_accepted + work.steps_rejected)
+    };
+    let (reference, _) = run_at(1e-10);
+    let deviation = |trace: &[(f64, Vec<f64>)]| {
+        (0..outputs.len())
+            .map(|o| {
+                let values = reference.iter().map(|(_, y)| y[o]);
+                let range =
+                    values.clone().fold(f64::MIN, f64::max) - values.fold(f64::MAX, f64::min);
+                let off = trace.iter().zip(&reference).map(|((_, y), (_, r))| (y[o] - r[o]).abs());
+                off.fold(0.0, f64::max) / range
+            })
+            .fold(0.0, f64::max)
+    };
+    let (default, default_steps) = run_at(start(vr::SOLVER_RTOL));
+    let (loose, loose_steps) = run_at(1e-5);
+    let (default_off, loose_off) = (deviation(&default), deviation(&loose));
+    println!("rtol 1e-7: {default_off:.1e} of a range, {default_steps} steps; 1e-5: {loose_off:.1e}, {loose_steps}");
+    assert!(default_off <= 1e-5, "the default keeps the fidelity target: {default_off:e}");
+    assert!(loose_off > 3.0 * default_off && loose_off <= 1e-3, "rtol 1e-5: {loose_off:e}");
+    // 440 against 841 when written.
+    assert!(
+        10 * loose_steps < 7 * default_steps,
+        "{loose_steps} steps at 1e-5, {default_steps} at 1e-7"
+    );
+}
+
+#[test]
 fn voltage_driver_current_is_the_exact_rl_exponential() {
     // u = R*i_ref held; L di/dt = u - R i  =>  i(t) = i_ref (1 - exp(-t R/L)).
     let trace = current_step(5e-3, "voltage", vr::I_COIL, 20e-3, 1e-4);

@@ -206,6 +206,12 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
     let mut b = model_body.to_vec();
     b[5..13].copy_from_slice(&f64::NAN.to_le_bytes());
     refused(&state(head, &b), "time = NaN in a valid frame".into());
+    // A valid solver.rtol that is not the tolerance the integrator's memory carries.
+    let mut b = model_body.to_vec();
+    b[value_at(vr::SOLVER_RTOL)..value_at(vr::SOLVER_RTOL) + 8]
+        .copy_from_slice(&1e-6f64.to_le_bytes());
+    refused(&state(head, &b), "solver.rtol 1e-6 over an integrator at 1e-7".into());
+    assert!(f.log().has(&["solver.rtol"]), "{}", f.log().dump());
 
     // None of that touched the instance or the good bytes.
     assert_eq!(f.restore(&bytes), OK);

@@ -235,6 +235,7 @@ impl Physics {
         inputs: &Inputs,
         start_time: f64,
     ) -> Result<Physics, String> {
+        let rtol = params.solver_rtol;
         let params = Coefficients::new(params)?;
         let systems = MODES.map(|m| mode_system(&params, m));
         if !systems.iter().all(|s| s.a.iter().all(|x| x.is_finite()) && s.radius.is_finite()) {
@@ -254,7 +255,7 @@ impl Physics {
             digital: Digital::default(),
             outer: OuterLoop::default(),
             cylinder: CylinderState::default(),
-            cylinder_memory: IntegratorMemory::default(),
+            cylinder_memory: IntegratorMemory::new(rtol),
             cylinder_rest: None,
             fixed_point: None,
             p_supply: inputs.p_supply,

@@ -169,6 +169,8 @@ pub struct Params {
     pub valve: ValveParams,
     pub cylinder: CylinderLoadParams,
     pub outer_loop: OuterLoopParams,
+    /// Relative tolerance of the cylinder's integrator.
+    pub solver_rtol: f64,
 }
 
 /// Inputs, held constant over a communication step.

@@ -119,9 +119,10 @@ pub(crate) struct IntegratorMemory {
     err_accepted: f64,
 }
 
+/// At the default `solver.rtol`.
 impl Default for IntegratorMemory {
     fn default() -> Self {
-        IntegratorMemory::new(1e-7)
+        IntegratorMemory::new(crate::variables::VARIABLES[crate::variables::vr::SOLVER_RTOL].start)
     }
 }
 

@@ -55,8 +55,16 @@ impl Physics {
         if !cylinder.iter().chain(memory.iter()).all(|x| x.is_finite()) {
             return Err("state holds non-finite cylinder values".into());
         }
+        let memory = IntegratorMemory::from_array(&memory);
+        // The tolerance is `solver.rtol`'s, carried in the memory the integrator reads.
+        if memory.rtol != physics.cylinder_memory.rtol {
+            return Err(format!(
+                "state's integrator tolerance {:e} is not its solver.rtol {:e}",
+                memory.rtol, physics.cylinder_memory.rtol
+            ));
+        }
         physics.cylinder = CylinderState::from_array(&cylinder);
-        physics.cylinder_memory = IntegratorMemory::from_array(&memory);
+        physics.cylinder_memory = memory;
         if !physics.z.iter().all(|x| x.is_finite()) {
             return Err("state holds non-finite values".into());
         }

@@ -10,7 +10,8 @@
 //! `--fmi 2|3|both`, `--only NAME,NAME`, `--repeat N` (untimed runs, best RTF, and timed runs,
 //! per-call shortest; default 3),
 //! `--peer-rtol R` (default 1e-10, where the peer's accuracy comes near the FMU's),
-//! `--reference-rtol R` (default 1e-10), `--no-peer`, `--require-peer` (fail if CVODE cannot
+//! `--reference-rtol R` (default 1e-10), `--fmu-rtol R` (the FMU's `solver.rtol`: accuracy
+//! traded for speed; default its own, 1e-7), `--no-peer`, `--require-peer` (fail if CVODE cannot
 //! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`.
 //!
 //! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the
@@ -61,6 +62,8 @@ struct Options {
     peer: bool,
     require_peer: bool,
     all_h: bool,
+    /// `solver.rtol` of the FMU (None: its default).
+    fmu_rtol: Option<f64>,
 }
 
 fn default_library() -> PathBuf {
@@ -91,6 +94,7 @@ fn parse() -> Result<Options, String> {
         peer: true,
         require_peer: false,
         all_h: false,
+        fmu_rtol: None,
     };
     let mut args = std::env::args().skip(1);
     let number = |v: Option<String>, what: &str| -> Result<f64, String> {
@@ -124,6 +128,7 @@ fn parse() -> Result<Options, String> {
             "--repeat" => o.repeat = number(args.next(), "--repeat")?.max(1.0) as usize,
             "--peer-rtol" => o.peer_rtol = number(args.next(), "--peer-rtol")?,
             "--reference-rtol" => o.reference_rtol = number(args.next(), "--reference-rtol")?,
+            "--fmu-rtol" => o.fmu_rtol = Some(number(args.next(), "--fmu-rtol")?),
             "--no-peer" => o.peer = false,
             "--require-peer" => o.require_peer = true,
             "--all-h" => o.all_h = true,
@@ -295,7 +300,7 @@ fn main() -> ExitCode {
             if !e.is_empty() {
                 eprintln!("bench: {e}");
             }
-            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--no-peer] [--require-peer] [--all-h] [--lib PATH]");
+            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--fmu-rtol R] [--no-peer] [--require-peer] [--all-h] [--lib PATH]");
             return if e.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
         }
     };
@@ -344,6 +349,7 @@ fn main() -> ExitCode {
     let mut slowest = Vec::new();
     for &h in &o.steps {
         for w in workloads::all() {
+            let w = Workload { solver_rtol: o.fmu_rtol, ..w };
             if o.only.as_ref().is_some_and(|names| !names.split(',').any(|n| n == w.name)) {
                 continue;
             }

@@ -1,52 +1,24 @@
 //! The accuracy yardstick: the same model (the rlib `ehsv_actuator::model::Model`, the code
 //! behind the C API) on the same communication grid and inputs, with the cylinder
-//! integrator's tolerance tightened from 1e-8 to [`REFERENCE_RTOL`] (or as asked). The valve and driver
-//! are propagated exactly either way.
-//!
-//! The tolerance is not a variable of the FMU; it travels in the instance's serialized
-//! state (the integrator memory `[rtol, h_next, h_accepted, err_accepted]` closes the
-//! state body). The reference takes the state bytes after initialisation, replaces rtol
-//! and restores them, so nothing in the FMU changes for the benchmark.
+//! integrator's tolerance `solver.rtol` tightened from the FMU's 1e-7 to [`REFERENCE_RTOL`]
+//! (or as asked). The valve and driver are propagated exactly either way.
 
 use std::ops::Range;
 
 use ehsv_actuator::model::Model;
 use ehsv_actuator::physics::Work;
+use ehsv_actuator::variables::vr;
 
 use crate::workloads::{Signal, Workload, INPUTS, OUTPUTS};
 
 pub const REFERENCE_RTOL: f64 = 1e-10;
 /// See [`deviation`].
 const RANGE_FLOOR: f64 = 1e-3;
-/// The rtol the FMU runs at (checked in the state bytes, so a layout change fails loudly).
-const FMU_RTOL: f64 = 1e-7;
 
 /// Outputs after every communication step, `OUTPUTS` order.
 pub type Trace = Vec<[f64; OUTPUTS.len()]>;
 
-/// FNV-1a 64 over the state body, as the FMU frames its state (magic | length | body | sum).
-fn checksum(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))
-}
-
-/// The instance with its cylinder tolerance set to `rtol`.
-fn with_rtol(model: &Model, rtol: f64) -> Result<Model, String> {
-    let mut bytes = model.to_bytes();
-    let n = bytes.len();
-    let at = n - 8 - 32; // rtol: first of the 4 memory words that end the body
-    let old = f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
-    if old != FMU_RTOL {
-        return Err(format!(
-            "state layout changed: expected the integrator rtol {FMU_RTOL} at byte {at}, found {old}"
-        ));
-    }
-    bytes[at..at + 8].copy_from_slice(&rtol.to_le_bytes());
-    let sum = checksum(&bytes[16..n - 8]);
-    bytes[n - 8..].copy_from_slice(&sum.to_le_bytes());
-    Model::from_bytes(&bytes)
-}
-
-/// A started model of `workload` through the rlib, at the FMU's own tolerance or `rtol`.
+/// A started model of `workload` through the rlib, at the workload's tolerance or `rtol`.
 pub fn start(workload: &Workload, rtol: Option<f64>) -> Result<Model, String> {
     let mut m = Model::new();
     for (vr, value) in workload.enums() {
@@ -55,11 +27,11 @@ pub fn start(workload: &Workload, rtol: Option<f64>) -> Result<Model, String> {
     for (vr, value) in workload.reals() {
         m.set(vr, value)?;
     }
-    m.initialize()?;
-    match rtol {
-        Some(rtol) => with_rtol(&m, rtol),
-        None => Ok(m),
+    if let Some(rtol) = rtol {
+        m.set(vr::SOLVER_RTOL, rtol)?;
     }
+    m.initialize()?;
+    Ok(m)
 }
 
 /// Runs one signal of `workload` through the rlib at cylinder tolerance `rtol` and records the outputs.

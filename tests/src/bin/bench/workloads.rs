@@ -83,6 +83,8 @@ pub struct Workload {
     pub v_supply: f64,
     /// One signal per instance stepped in lock-step (one entry: a single actuator).
     pub legs: Vec<Signal>,
+    /// `solver.rtol` of every instance (None: the FMU's default).
+    pub solver_rtol: Option<f64>,
 }
 
 /// Square wave of unit amplitude, +1 over the first half period.
@@ -121,7 +123,14 @@ impl Signal {
 
 impl Workload {
     fn single(name: &str, driver: i64, control_mode: i64, v_supply: f64, s: Signal) -> Workload {
-        Workload { name: name.into(), driver, control_mode, v_supply, legs: vec![s] }
+        Workload {
+            name: name.into(),
+            driver,
+            control_mode,
+            v_supply,
+            legs: vec![s],
+            solver_rtol: None,
+        }
     }
 
     /// Enumerations to set before initialisation.
@@ -131,8 +140,10 @@ impl Workload {
 
     /// Reals to set before initialisation (the inputs start at 0: every signal starts as a
     /// step at t = 0 from the equilibrium at rest).
-    pub fn reals(&self) -> [(usize, f64); 1] {
-        [(vr::V_SUPPLY, self.v_supply)]
+    pub fn reals(&self) -> Vec<(usize, f64)> {
+        let mut reals = vec![(vr::V_SUPPLY, self.v_supply)];
+        reals.extend(self.solver_rtol.map(|rtol| (vr::SOLVER_RTOL, rtol)));
+        reals
     }
 
     pub fn is_quadruped(&self) -> bool {
@@ -170,6 +181,7 @@ pub fn all() -> Vec<Workload> {
         control_mode: POSITION,
         v_supply: 72.0,
         legs: (0..LEGS).map(|l| Signal::Gait(l as f64 * GAIT_PERIOD / LEGS as f64)).collect(),
+        solver_rtol: None,
     });
     w
 }
