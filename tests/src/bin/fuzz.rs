@@ -133,13 +133,21 @@ const CALLBACKS: fmi2CallbackFunctions = fmi2CallbackFunctions {
     componentEnvironment: null_mut(),
 };
 
-/// The FMU answers OK, Discard or Error only: it never returns Warning (nothing is
-/// approximated) nor Fatal (an error never reaches other instances). Fails on either.
+/// The FMU answers OK, Discard or Error only: it never returns Fatal (an error never
+/// reaches other instances), and Warning only from doStep ([`check_step`]). Fails on either.
 fn check(status: Status) {
     assert!(
         matches!(status, Status::OK | Status::Discard | Status::Error),
         "the FMU returned {status:?}"
     );
+}
+
+/// doStep may also warn: about an input condition that began with the step (a command
+/// above the valve's rating, no supply while the command asks for motion).
+fn check_step(status: Status) {
+    if status != Status::Warning {
+        check(status);
+    }
 }
 
 impl Fuzzer {
@@ -275,7 +283,7 @@ impl Fuzzer {
                     let i = self.instance(fmi3);
                     // Mostly at the instance's own time, so steps succeed and the model moves on.
                     let now = if self.rng.chance(5) { t } else { self.current_time(i, fmi3) };
-                    check(if fmi3 {
+                    check_step(if fmi3 {
                         let (mut a, mut b, mut c, mut d) = (false, false, false, 0.0);
                         let p =
                             |r: &mut Rng, x: *mut bool| if r.chance(20) { null_mut() } else { x };
