@@ -41,27 +41,19 @@ impl Physics {
         if clocks_idle && self.resting == Some(key) {
             return Ok(StepEvents::default());
         }
-        let saved = (
-            self.z,
-            self.mode,
-            self.stops,
-            self.digital,
-            self.outer,
-            self.cylinder,
-            self.cylinder_memory,
-            self.p_supply,
-        );
+        let saved =
+            (self.z, self.mode, self.stops, self.digital, self.outer, self.cylinder, self.p_supply);
         // A piston through the end of the cylinder is a broken state, refused like any error.
         let result = self.advance_inner(inputs, t_start, step).and_then(|events| {
-            cylinder::check_inside(&self.params.cylinder, &self.cylinder)?;
+            cylinder::check_inside(&self.params.cylinder, &self.cylinder.state)?;
             Ok(events)
         });
         let bits = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
         let unchanged = bits(self.z.as_slice(), saved.0.as_slice())
             && (self.mode, self.stops) == (saved.1, saved.2)
-            && bits(&self.cylinder.to_array(), &saved.5.to_array())
-            && bits(&self.cylinder_memory.to_array(), &saved.6.to_array())
-            && self.p_supply.to_bits() == saved.7.to_bits();
+            && bits(&self.cylinder.state.to_array(), &saved.5.state.to_array())
+            && bits(&self.cylinder.memory.to_array(), &saved.5.memory.to_array())
+            && self.p_supply.to_bits() == saved.6.to_bits();
         self.resting = (clocks_idle && result.is_ok() && unchanged).then_some(key);
         if result.is_err() {
             (
@@ -71,11 +63,9 @@ impl Physics {
                 self.digital,
                 self.outer,
                 self.cylinder,
-                self.cylinder_memory,
                 self.p_supply,
             ) = saved;
             self.active = self.systems[self.mode.index()].with_stops(&self.params, self.stops);
-            self.cylinder_rest = None;
         }
         result
     }
@@ -120,7 +110,7 @@ impl Physics {
                 // The outer loop samples first, so a bridge sample at the same instant sees its command.
                 let measured = match p.loops.mode {
                     ControlMode::Flow => valve::no_load_flow(&p, self.z[XS]),
-                    _ => self.cylinder.x,
+                    _ => self.cylinder.state.x,
                 };
                 self.outer.sample(&p.loops, inputs.reference, measured);
                 self.follow_command(&inputs, &mut events);
@@ -148,87 +138,6 @@ impl Physics {
             driver::count_switch(events, before, self.mode);
             self.z = z;
         }
-    }
-
-    /// Advances the cylinder over a piece of `h` seconds in which the valve went from `z0`
-    /// to `z1`: the spool path is the quintic Hermite interpolant of its exact position,
-    /// velocity and acceleration at both ends. A cylinder at rest behind a still spool is
-    /// left as it is; `rest` remembers
-    /// the (spool, supply, load) bits at which that was last verified, a pure cache.
-    #[allow(clippy::too_many_arguments)]
-    fn drive_cylinder(
-        sys: &ModeSystem,
-        params: &CylinderParams,
-        cylinder: &mut CylinderState,
-        memory: &mut IntegratorMemory,
-        rest: &mut Option<[u64; 3]>,
-        work: &mut Work,
-        (z0, z1, h): (&Vector, &Vector, f64),
-        inputs: &Held,
-    ) -> Result<(), String> {
-        if (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9) {
-            let key = [z0[XS].to_bits(), inputs.p_supply.to_bits(), inputs.f_ext.to_bits()];
-            if *rest == Some(key) {
-                return Ok(());
-            }
-            // At rest means an equilibrium, whatever the piece length: drifting less than
-            // 1e-10 of its scale in a second (a short piece must not make motion look still).
-            // dx/dt is v: a moving piston needs no model evaluation to tell.
-            let still =
-                |d: f64, n: usize| d.abs() * REST_HORIZON <= 1e-10 * rosenbrock::STATE_SCALE[n];
-            if still(cylinder.v, cylinder::X)
-                && cylinder::derivatives(params, cylinder, z0[XS], inputs.p_supply, inputs.f_ext)
-                    .iter()
-                    .enumerate()
-                    .all(|(n, &d)| still(d, n))
-            {
-                *rest = Some(key);
-                return Ok(());
-            }
-        }
-        *rest = None;
-        if h <= TINY_PIECE {
-            // Far below every cylinder time constant (|lambda| h < 2e-5): one Euler step.
-            let f = cylinder::derivatives(
-                params,
-                cylinder,
-                0.5 * (z0[XS] + z1[XS]),
-                inputs.p_supply,
-                inputs.f_ext,
-            );
-            let mut y = cylinder.to_array();
-            for (y, d) in y.iter_mut().zip(f) {
-                *y += h * d;
-            }
-            *cylinder = CylinderState::from_array(&y);
-            return Ok(());
-        }
-        let a = &sys.a;
-        let (az0, az1) = (state::rate(a, z0), state::rate(a, z1));
-        let path = SpoolPath::new(
-            h,
-            [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],
-            [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
-        );
-        // The port laws change sides at null spool, a kink in the flows that Rodas4 would
-        // reject its way across: the piece is split there.
-        let mut done = 0.0;
-        for end in [path.null_crossing(), Some(h)].into_iter().flatten() {
-            let offset = done;
-            let spool = |tau: f64| (path.position(offset + tau), path.rate(offset + tau));
-            let stats = rosenbrock::advance_with_rate(
-                params,
-                cylinder,
-                end - offset,
-                inputs.p_supply,
-                inputs.f_ext,
-                spool,
-                memory,
-            )?;
-            work.add(&stats);
-            done = end;
-        }
-        Ok(())
     }
 
     /// Continuous evolution over `span` seconds with state events (driver mode changes);
@@ -312,12 +221,9 @@ impl Physics {
                         if merge && d <= MERGE_SPAN {
                             pending = Some((z0, d));
                         } else {
-                            Self::drive_cylinder(
+                            self.cylinder.drive(
                                 sys,
                                 &self.params.cylinder,
-                                &mut self.cylinder,
-                                &mut self.cylinder_memory,
-                                &mut self.cylinder_rest,
                                 &mut self.work,
                                 (&z0, &at, d),
                                 inputs,
@@ -340,12 +246,9 @@ impl Physics {
                 }
                 let next = next.unwrap_or_else(|| propagate(&z));
                 let (z0, d) = pending.take().map_or((z, h), |(z0, d)| (z0, d + h));
-                Self::drive_cylinder(
+                self.cylinder.drive(
                     sys,
                     &self.params.cylinder,
-                    &mut self.cylinder,
-                    &mut self.cylinder_memory,
-                    &mut self.cylinder_rest,
                     &mut self.work,
                     (&z0, &next, d),
                     inputs,
@@ -356,12 +259,9 @@ impl Physics {
         }
         if let Some((z0, d)) = pending {
             // The segment ended on an event.
-            Self::drive_cylinder(
+            self.cylinder.drive(
                 &self.systems[self.mode.index()],
                 &self.params.cylinder,
-                &mut self.cylinder,
-                &mut self.cylinder_memory,
-                &mut self.cylinder_rest,
                 &mut self.work,
                 (&z0, &z, d),
                 inputs,

@@ -11,6 +11,7 @@ mod advance;
 mod coil;
 mod cylinder;
 mod cylinder_jacobian;
+mod driven_cylinder;
 mod driver;
 mod exact_integrator;
 mod hbridge;
@@ -31,6 +32,7 @@ pub use params::{
 };
 
 use cylinder::{CylinderParams, CylinderState};
+use driven_cylinder::DrivenCylinder;
 use driver::{Mode, MODES};
 use exact_integrator::{
     locate_event, may_cross, predicted_crossing, ModeSystem, Propagator, PropagatorCache,
@@ -179,10 +181,7 @@ pub struct Physics {
     /// Discrete state of the H-bridge's digital loop and PWM.
     digital: Digital,
     outer: OuterLoop,
-    cylinder: CylinderState,
-    cylinder_memory: IntegratorMemory,
-    /// Where the cylinder was last found at rest (see `drive_cylinder`); not part of the state.
-    cylinder_rest: Option<[u64; 3]>,
+    cylinder: DrivenCylinder,
     /// A state the propagator of (system, sub-step bits) maps onto itself bit for bit: the
     /// valve and driver have settled, so the product and the guard checks can be skipped
     /// with identical results (a pure cache, not part of the state).
@@ -254,9 +253,7 @@ impl Physics {
             active: systems[Mode::Linear.index()],
             digital: Digital::default(),
             outer: OuterLoop::default(),
-            cylinder: CylinderState::default(),
-            cylinder_memory: IntegratorMemory::new(rtol),
-            cylinder_rest: None,
+            cylinder: DrivenCylinder::new(CylinderState::default(), IntegratorMemory::new(rtol)),
             fixed_point: None,
             p_supply: inputs.p_supply,
             resting: None,
@@ -266,7 +263,7 @@ impl Physics {
         let held = Held::new(&params, inputs);
         params.cylinder.check_supply(held.p_supply)?;
         physics.outer = OuterLoop::at_start(&params.loops, held.reference, start_time);
-        physics.cylinder = cylinder::equilibrium(&params.cylinder, held.p_supply, held.f_ext);
+        physics.cylinder.state = cylinder::equilibrium(&params.cylinder, held.p_supply, held.f_ext);
         let i_cmd = physics.current_command(&held);
         physics.equilibrium(i_cmd, held.rail, start_time);
         Ok(physics)
@@ -341,7 +338,7 @@ impl Physics {
             ..Outputs::default()
         };
         let c = &self.params.cylinder;
-        cylinder::write_outputs(c, &self.cylinder, z[XS], self.p_supply, &mut out);
+        cylinder::write_outputs(c, &self.cylinder.state, z[XS], self.p_supply, &mut out);
         out
     }
 }
@@ -358,9 +355,9 @@ impl Physics {
     ) -> Result<StepEvents, String> {
         let c = &self.params.cylinder;
         c.check_supply(inputs.p_supply)?;
-        let relief_before = cylinder::relief_open(c, &self.cylinder);
+        let relief_before = cylinder::relief_open(c, &self.cylinder.state);
         let mut events = self.advance(inputs, t_start, step)?;
-        let relief_after = cylinder::relief_open(&self.params.cylinder, &self.cylinder);
+        let relief_after = cylinder::relief_open(&self.params.cylinder, &self.cylinder.state);
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);
         Ok(events)
     }

@@ -20,8 +20,8 @@ impl Physics {
         let mut next = Physics::start(params, inputs, time)?;
         next.digital = self.digital;
         next.outer = self.outer;
-        next.cylinder = self.cylinder;
-        next.cylinder_memory = self.cylinder_memory;
+        // Not the rest cache: it holds for the old parameters.
+        next.cylinder = DrivenCylinder::new(self.cylinder.state, self.cylinder.memory);
         next.p_supply = self.p_supply;
         // New gains or limits can make another driver mode (rail, slew) the consistent
         // one for the state reached: choose it again, as for a new command.

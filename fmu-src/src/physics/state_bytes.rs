@@ -9,7 +9,7 @@ use super::outer_loop::OuterLoop;
 use super::rosenbrock::IntegratorMemory;
 use super::state::N;
 use super::valve::Stops;
-use super::{Inputs, Params, Physics};
+use super::{DrivenCylinder, Inputs, Params, Physics};
 use crate::model::Reader;
 
 impl Physics {
@@ -21,7 +21,8 @@ impl Physics {
         }
         self.digital.write_bytes(out);
         self.outer.write_bytes(out);
-        for x in self.cylinder.to_array().iter().chain(self.cylinder_memory.to_array().iter()) {
+        for x in self.cylinder.state.to_array().iter().chain(self.cylinder.memory.to_array().iter())
+        {
             out.extend_from_slice(&x.to_le_bytes());
         }
     }
@@ -57,14 +58,13 @@ impl Physics {
         }
         let memory = IntegratorMemory::from_array(&memory);
         // The tolerance is `solver.rtol`'s, carried in the memory the integrator reads.
-        if memory.rtol != physics.cylinder_memory.rtol {
+        if memory.rtol != physics.cylinder.memory.rtol {
             return Err(format!(
                 "state's integrator tolerance {:e} is not its solver.rtol {:e}",
-                memory.rtol, physics.cylinder_memory.rtol
+                memory.rtol, physics.cylinder.memory.rtol
             ));
         }
-        physics.cylinder = CylinderState::from_array(&cylinder);
-        physics.cylinder_memory = memory;
+        physics.cylinder = DrivenCylinder::new(CylinderState::from_array(&cylinder), memory);
         if !physics.z.iter().all(|x| x.is_finite()) {
             return Err("state holds non-finite values".into());
         }
