@@ -107,33 +107,44 @@ fn results_do_not_depend_on_the_communication_step() {
     }
 }
 
+/// The cylinder's outputs the tests below compare.
+const CYLINDER_OUTPUTS: [usize; 6] =
+    [vr::Q_A, vr::Q_B, vr::P_A, vr::P_B, vr::X_PISTON, vr::V_PISTON];
+
+/// The piston starts, runs and reverses: i_ref 5 mA, then -5 mA at 15 ms, for 30 ms at
+/// steps `h`; the cylinder's outputs at every communication point.
+fn start_run_reverse(m: &mut Model, h: f64) -> Vec<(f64, Vec<f64>)> {
+    m.set(vr::I_REF, 5e-3).unwrap();
+    let mut trace = run(m, 15e-3, h, &CYLINDER_OUTPUTS);
+    m.set(vr::I_REF, -5e-3).unwrap();
+    trace.extend(run(m, 15e-3, h, &CYLINDER_OUTPUTS).into_iter().skip(1));
+    trace
+}
+
+/// The range (max - min) of each output over a trace.
+fn ranges(trace: &[(f64, Vec<f64>)]) -> Vec<f64> {
+    (0..CYLINDER_OUTPUTS.len())
+        .map(|o| {
+            let values = trace.iter().map(|(_, y)| y[o]);
+            values.clone().fold(f64::MIN, f64::max) - values.fold(f64::MAX, f64::min)
+        })
+        .collect()
+}
+
 #[test]
 fn cylinder_outputs_do_not_depend_on_the_communication_step() {
-    // The piston starts, runs and reverses (i_ref 5 mA, then -5 mA at 15 ms). Between
-    // communication points the cylinder follows the spool's path, however far apart they
-    // are: every output within 1e-5 of its range over the run at 10 us steps. (With one
+    // Between communication points the cylinder follows the spool's path, however far apart
+    // they are: every output within 1e-5 of its range over the run at 10 us steps. (With one
     // piece of path per 1 ms step the ideal source was 8e-3 of a range off.)
-    let outputs = [vr::Q_A, vr::Q_B, vr::P_A, vr::P_B, vr::X_PISTON, vr::V_PISTON];
+    let outputs = CYLINDER_OUTPUTS;
     // Every driver, and the H-bridge slowed to 2 kHz (its spans between switching instants
     // are then longer than a piece of path may be).
     let slow_bridge = [driver("hbridge_pid"), ("hbridge.f_pwm", 2e3), ("hbridge.f_sample", 2e3)];
     let cases = DRIVERS.map(|kind| vec![driver(kind)]).into_iter().chain([slow_bridge.to_vec()]);
     for settings in cases {
-        let trace = |h: f64| {
-            let mut m = model(&settings);
-            m.set(vr::I_REF, 5e-3).unwrap();
-            let mut trace = run(&mut m, 15e-3, h, &outputs);
-            m.set(vr::I_REF, -5e-3).unwrap();
-            trace.extend(run(&mut m, 15e-3, h, &outputs).into_iter().skip(1));
-            trace
-        };
+        let trace = |h: f64| start_run_reverse(&mut model(&settings), h);
         let reference = trace(1e-5);
-        let range: Vec<f64> = (0..outputs.len())
-            .map(|o| {
-                let values = reference.iter().map(|(_, y)| y[o]);
-                values.clone().fold(f64::MIN, f64::max) - values.fold(f64::MAX, f64::min)
-            })
-            .collect();
+        let range = ranges(&reference);
         for h in [1e-4_f64, 1e-3] {
             let stride = (h / 1e-5).round() as usize;
             for (k, (t, y)) in trace(h).iter().enumerate() {
@@ -156,27 +167,21 @@ fn cylinder_outputs_do_not_depend_on_the_communication_step() {
 
 #[test]
 fn solver_rtol_trades_cylinder_accuracy_for_work() {
-    // The piston starts, runs and reverses at 1e-4 s steps; outputs against a run at rtol
-    // 1e-10, as fractions of their ranges, and the Rosenbrock steps each tolerance takes.
-    let outputs = [vr::Q_A, vr::Q_B, vr::P_A, vr::P_B, vr::X_PISTON, vr::V_PISTON];
+    // Start, run and reversal at 1e-4 s steps: outputs against a run at rtol 1e-10, as
+    // fractions of their ranges, and the Rosenbrock steps each tolerance takes.
     let run_at = |rtol: f64| {
         let mut m = model(&[("solver.rtol", rtol)]);
-        m.set(vr::I_REF, 5e-3).unwrap();
-        let mut trace = run(&mut m, 15e-3, 1e-4, &outputs);
-        m.set(vr::I_REF, -5e-3).unwrap();
-        trace.extend(run(&mut m, 15e-3, 1e-4, &outputs).into_iter().skip(1));
+        let trace = start_run_reverse(&mut m, 1e-4);
         let work = m.work();
         (trace, work.steps_accepted + work.steps_rejected)
     };
     let (reference, _) = run_at(1e-10);
+    let range = ranges(&reference);
     let deviation = |trace: &[(f64, Vec<f64>)]| {
-        (0..outputs.len())
+        (0..CYLINDER_OUTPUTS.len())
             .map(|o| {
-                let values = reference.iter().map(|(_, y)| y[o]);
-                let range =
-                    values.clone().fold(f64::MIN, f64::max) - values.fold(f64::MAX, f64::min);
                 let off = trace.iter().zip(&reference).map(|((_, y), (_, r))| (y[o] - r[o]).abs());
-                off.fold(0.0, f64::max) / range
+                off.fold(0.0, f64::max) / range[o]
             })
             .fold(0.0, f64::max)
     };

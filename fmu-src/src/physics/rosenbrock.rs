@@ -119,7 +119,8 @@ pub(crate) struct IntegratorMemory {
     err_accepted: f64,
 }
 
-/// At the default `solver.rtol`.
+/// At the default `solver.rtol` (the instance starts at the parameter's value).
+#[cfg(test)]
 impl Default for IntegratorMemory {
     fn default() -> Self {
         IntegratorMemory::new(crate::variables::VARIABLES[crate::variables::vr::SOLVER_RTOL].start)
