@@ -196,8 +196,9 @@ mean, p99.9, max: one doStep in thread CPU time (CLOCK_THREAD_CPUTIME_ID) [us], 
   the running thread); maxwall: its slowest in wall time (the difference is preemption). Timed
   runs are separate from the untimed ones (two clock reads per call).
 dev/range: worst max|output - reference| / range of that output over the run; reference: the
-  same model through the rlib at cylinder rtol 1e-10 (the FMU runs 1e-7), same grid and inputs.
-ref spread: the same measure between that reference and one at rtol 1e-11: where it is not small
+  same model through the rlib at solver.rtol 1e-10 or --reference-rtol (the FMU at its 1e-7
+  or --fmu-rtol), same grid and inputs.
+ref spread: the same measure between that reference and one 10x tighter: where it is not small
   the workload itself is ill-conditioned (a deviation of that size says nothing of the FMU).
 peer: SUNDIALS CVODE (BDF, Newton, dense LU, DQ Jacobian) on the same equations, rtol as given,
   restarted at every input change and time event; st/pt, jac/pt, LU/pt, rst/pt: its steps,
