@@ -15,6 +15,10 @@ use crate::variables::{
     start_values, vr, Causality, Variability, N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
 };
 
+/// The communication step of the default experiment (modelDescription.xml), for which
+/// initialisation builds the first step's propagators ahead.
+pub const DEFAULT_STEP_SIZE: f64 = 1e-4;
+
 #[derive(Clone)]
 pub struct Model {
     time: f64,
@@ -163,7 +167,9 @@ impl Model {
         let state = self.state.get_mut();
         let p = params(&state.values)?;
         check_inputs_fit(&state.values)?;
-        state.physics = Physics::start(&p, &inputs(&state.values), self.time)?;
+        let inputs = inputs(&state.values);
+        state.physics = Physics::start(&p, &inputs, self.time)?;
+        state.physics.prepare_first_step(&inputs, self.time, DEFAULT_STEP_SIZE);
         state.write_outputs();
         state.stale = false;
         self.initialized = true;
@@ -411,6 +417,12 @@ impl State {
 /// The parameters at their start values.
 pub(crate) fn start_params() -> Params {
     params(&start_values()).expect("the start values are valid")
+}
+
+/// The inputs at their start values.
+#[cfg(test)]
+pub(crate) fn start_inputs() -> Inputs {
+    inputs(&start_values())
 }
 
 /// The inputs in the value array.

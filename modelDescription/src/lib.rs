@@ -74,7 +74,7 @@ fn utc_date_time(seconds: u64) -> String {
 /// Default experiment: 10 ms at 100 us communication steps.
 const START_TIME: f64 = 0.0;
 const STOP_TIME: f64 = 0.01;
-const STEP_SIZE: f64 = 1e-4;
+const STEP_SIZE: f64 = ehsv_actuator::model::DEFAULT_STEP_SIZE;
 
 /// FMI 2.0 Co-Simulation modelDescription.xml.
 pub fn fmi2_xml() -> String {

@@ -269,6 +269,18 @@ impl Physics {
         Ok(physics)
     }
 
+    /// Builds ahead the propagators that a first step of `step` seconds with these inputs
+    /// needs, so that the first doStep costs what the others do (a hardware-in-the-loop
+    /// run's slowest step was its first). Only the propagator cache changes: a probe takes
+    /// the step and hands its cache back; a probe that fails leaves nothing.
+    pub(crate) fn prepare_first_step(&mut self, inputs: &Inputs, t_start: f64, step: f64) {
+        // On the heap: two instances' worth of stack is more than some importers' threads have.
+        let mut probe = Box::new(self.clone());
+        if probe.advance(inputs, t_start, step).is_ok() {
+            self.cache = probe.cache;
+        }
+    }
+
     /// The coil current command: the input, or the outer loop's output.
     fn current_command(&self, inputs: &Held) -> f64 {
         if self.params.loops.mode == ControlMode::Current {
@@ -385,5 +397,42 @@ mod tests {
             assert!((stepped - p * z).norm() <= 1e-12 * z.norm(), "{mode:?}");
             assert_eq!(stepped.rows(state::EVOLVING, 3), z.rows(state::EVOLVING, 3));
         }
+    }
+
+    /// Preparing the first step computes its propagators ahead (that step then computes no
+    /// matrix exponential) and changes nothing else: the run continues bit for bit as an
+    /// unprepared one, through steps of other sizes too.
+    #[test]
+    fn prepared_first_step_computes_no_exponential_and_changes_no_result() {
+        let mut p = crate::model::start_params();
+        p.control_mode = ControlMode::Position;
+        let inputs = |k: usize| Inputs {
+            x_ref: 5e-3 * (k as f64 * 0.01).sin(),
+            ..crate::model::start_inputs()
+        };
+        let plain = Physics::start(&p, &inputs(0), 0.0).unwrap();
+        let mut prepared = plain.clone();
+        prepared.prepare_first_step(&inputs(0), 0.0, 1e-4);
+        let mut runs = [plain, prepared];
+        let ahead = [&runs[0], &runs[1]].map(|run| run.work().exponentials);
+        assert_eq!(ahead[0], 0);
+        assert!(ahead[1] > 0, "nothing prepared");
+        for (n, run) in runs.iter_mut().enumerate() {
+            let mut t = 0.0;
+            for k in 0..40 {
+                let h = if k < 20 { 1e-4 } else { 3e-5 };
+                run.step(&inputs(k), t, h).unwrap();
+                t += h;
+                if k == 0 {
+                    let in_first_step = run.work().exponentials - ahead[n];
+                    assert_eq!(in_first_step == 0, n == 1, "run {n}: {in_first_step} exponentials");
+                }
+            }
+        }
+        let [plain, prepared] = &runs;
+        assert!(plain.cylinder.state.x.abs() > 1e-5, "the piston moved");
+        assert_eq!(plain.z.map(f64::to_bits), prepared.z.map(f64::to_bits));
+        assert_eq!(plain.cylinder.state.to_array(), prepared.cylinder.state.to_array());
+        assert_eq!(plain.outputs(), prepared.outputs());
     }
 }
