@@ -136,7 +136,6 @@ fn cylinder_outputs_do_not_depend_on_the_communication_step() {
     // Between communication points the cylinder follows the spool's path, however far apart
     // they are: every output within 1e-5 of its range over the run at 10 us steps. (With one
     // piece of path per 1 ms step the ideal source was 8e-3 of a range off.)
-    let outputs = CYLINDER_OUTPUTS;
     // Every driver, and the H-bridge slowed to 2 kHz (its spans between switching instants
     // are then longer than a piece of path may be).
     let slow_bridge = [driver("hbridge_pid"), ("hbridge.f_pwm", 2e3), ("hbridge.f_sample", 2e3)];
@@ -150,12 +149,12 @@ fn cylinder_outputs_do_not_depend_on_the_communication_step() {
             for (k, (t, y)) in trace(h).iter().enumerate() {
                 let (tr, yr) = &reference[k * stride];
                 assert!((t - tr).abs() < 1e-12);
-                for o in 0..outputs.len() {
+                for o in 0..CYLINDER_OUTPUTS.len() {
                     let off = (y[o] - yr[o]).abs() / range[o];
                     assert!(
                         off <= 1e-5,
                         "{settings:?} h {h} t {t} output {}: {} vs {} ({off:.1e} of its range)",
-                        outputs[o],
+                        CYLINDER_OUTPUTS[o],
                         y[o],
                         yr[o]
                     );

@@ -414,7 +414,7 @@ mod tests {
         let mut prepared = plain.clone();
         prepared.prepare_first_step(&inputs(0), 0.0, 1e-4);
         let mut runs = [plain, prepared];
-        let ahead = [&runs[0], &runs[1]].map(|run| run.work().exponentials);
+        let ahead = runs.each_ref().map(|run| run.work().exponentials);
         assert_eq!(ahead[0], 0);
         assert!(ahead[1] > 0, "nothing prepared");
         for (n, run) in runs.iter_mut().enumerate() {

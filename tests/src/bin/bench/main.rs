@@ -156,6 +156,9 @@ fn measure(
     // How far the yardstick itself is converged: the same run 10x tighter.
     let tighter = reference::run(w, w.legs[0], h, steps, 0.1 * o.reference_rtol)?;
     let reference_spread = report::worst(&reference::deviation(&reference, &tighter));
+    // How much looser the FMU integrates than the reference (see the deviation check below).
+    let looser =
+        (o.fmu_rtol.unwrap_or(VARIABLES[vr::SOLVER_RTOL].start) / o.reference_rtol).max(1.0);
     let work = report::WorkSummary::new(&reference::fmu_work(w, w.legs[0], h, steps)?, steps);
     let mut rows = Vec::new();
     let mut first_trace: Option<reference::Trace> = None;
@@ -204,8 +207,6 @@ fn measure(
         // reference moved by its spread for a 10x tighter tolerance, so an FMU that many
         // times looser may move that much more (hbridge_square_100Hz over 0.5 s: spread
         // 8.8e-4, the FMU at 1e-7 5.3e-1 off).
-        let looser =
-            (o.fmu_rtol.unwrap_or(VARIABLES[vr::SOLVER_RTOL].start) / o.reference_rtol).max(1.0);
         if dev.0.is_nan() || (dev.0 > DEVIATION_LIMIT && dev.0 > 10.0 * looser * reference_spread.0)
         {
             let (k, value, expected) = reference::worst_point(&best.trace, &reference, dev.1);
