@@ -196,11 +196,10 @@ impl Physics {
                 // step's slewing ends within nanoseconds): search at once, without first
                 // propagating over a sub-step that the event will cut. A state that its
                 // propagator maps onto itself crosses nothing: no prediction needed.
-                let predicted = if at_fixed_point && propagator.has_matrix() {
-                    f64::INFINITY
-                } else {
-                    predicted_crossing(sys, &z, passed)
-                };
+                let guards = (!(at_fixed_point && propagator.has_matrix()))
+                    .then(|| GuardsAt::new(sys, &z, passed));
+                let predicted =
+                    guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing(sys, passed));
                 let next = (predicted >= h).then(|| propagate(&z));
                 let search = match next {
                     None => true,
@@ -212,7 +211,10 @@ impl Physics {
                         }
                         false
                     }
-                    Some(next) => may_cross(sys, &z, &next, h, passed),
+                    Some(next) => {
+                        let guards = guards.unwrap_or_else(|| GuardsAt::new(sys, &z, passed));
+                        may_cross(sys, &guards, &next, h, passed)
+                    }
                 };
                 if search {
                     self.work.guard_locations += 1;

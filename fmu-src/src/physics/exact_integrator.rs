@@ -30,6 +30,9 @@ const MAX_SUBSTEPS: usize = 1 << 14;
 const MAX_GUARDS: usize = 8;
 const CACHE_SLOTS: usize = 32;
 
+/// One number per guard.
+pub(crate) type PerGuard = [f64; MAX_GUARDS];
+
 /// The linear system of one mode: dynamics, exit guards (leave when `guard . z > 0`),
 /// and the sub-step lengths that keep |lambda|*h bounded.
 #[derive(Clone, Copy)]
@@ -64,6 +67,16 @@ impl ModeSystem {
         self.guards[self.n_guards] = guard;
         self.guard_rates[self.n_guards] = self.a.transpose() * guard;
         self.n_guards += 1;
+    }
+
+    /// Guard `g`'s value at `z`.
+    fn guard_value(&self, g: usize, z: &Vector) -> f64 {
+        self.guards[g].dot(z)
+    }
+
+    /// Guard `g`'s rate of change at `z`.
+    fn guard_rate(&self, g: usize, z: &Vector) -> f64 {
+        self.guard_rates[g].dot(z)
     }
 
     /// This driver mode with the valve's travel stops: a part at a stop is held there
@@ -276,29 +289,35 @@ const GUARD_SAMPLES: usize = 16;
 
 /// Could a guard (not in `passed`) have turned positive between `z0` and `z1` (`h`
 /// apart)? True when it goes from <= 0 to > 0, or when the tangents at both ends meet
-/// above zero (a bump).
-pub(crate) fn may_cross(sys: &ModeSystem, z0: &Vector, z1: &Vector, h: f64, passed: u8) -> bool {
+/// above zero (a bump). `at_start`: the guards at `z0` ([`GuardsAt::new`]).
+pub(crate) fn may_cross(
+    sys: &ModeSystem,
+    at_start: &GuardsAt,
+    z1: &Vector,
+    h: f64,
+    passed: u8,
+) -> bool {
     (0..sys.n_guards).any(|k| {
         if passed & 1 << k != 0 {
             return false;
         }
-        let g0 = sys.guards[k].dot(z0);
+        let g0 = at_start.values[k];
         if g0 > 0.0 {
             return false;
         }
-        if sys.guards[k].dot(z1) > 0.0 {
+        let g1 = sys.guard_value(k, z1);
+        if g1 > 0.0 {
             return true;
         }
         // A bump needs a rising start steep enough to reach zero within h.
-        let d0 = sys.guard_rates[k].dot(z0);
+        let d0 = at_start.rates[k];
         if d0 <= 0.0 || g0 + d0 * h <= 0.0 {
             return false;
         }
-        let d1 = sys.guard_rates[k].dot(z1);
+        let d1 = sys.guard_rate(k, z1);
         if d1 >= 0.0 {
             return false;
         }
-        let g1 = sys.guards[k].dot(z1);
         let t = ((g1 - g0 - d1 * h) / (d0 - d1)).clamp(0.0, h);
         g0 + d0 * t > 0.0
     })
@@ -334,7 +353,7 @@ pub(crate) fn locate_event(
         for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
             let mut coef = [0.0; TAYLOR_TERMS];
             for (c, t) in coef.iter_mut().zip(terms) {
-                *c = sys.guards[g].dot(t);
+                *c = sys.guard_value(g, t);
             }
             if coef[0] > 0.0 {
                 continue; // passed before this window (edge triggered)
@@ -351,7 +370,7 @@ pub(crate) fn locate_event(
             // of its instructions) for a shift of the event below 1e-14 of the window.
             let mut at = horner_vec(terms, tau);
             let mut nudge = 8.0 * f64::EPSILON * w;
-            while sys.guards[g].dot(&at) <= 0.0 && tau < w {
+            while sys.guard_value(g, &at) <= 0.0 && tau < w {
                 tau = (tau + nudge).min(w);
                 at = horner_vec(terms, tau);
                 nudge *= 2.0;
@@ -365,20 +384,38 @@ pub(crate) fn locate_event(
     None
 }
 
-/// The earliest time at which a guard (not in `passed`) reaches zero if it kept its
-/// present slope; infinite if none is rising towards zero.
-pub(crate) fn predicted_crossing(sys: &ModeSystem, z: &Vector, passed: u8) -> f64 {
-    let mut earliest = f64::INFINITY;
-    for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
-        let value = sys.guards[g].dot(z);
-        if value <= 0.0 {
-            let rate = sys.guard_rates[g].dot(z);
-            if rate > 0.0 {
+/// The guards' values and rates at the start of a sub-step, shared by the crossing's
+/// prediction and the check after the sub-step.
+pub(crate) struct GuardsAt {
+    values: PerGuard,
+    rates: PerGuard,
+}
+
+impl GuardsAt {
+    pub(crate) fn new(sys: &ModeSystem, z: &Vector, passed: u8) -> GuardsAt {
+        let mut at = GuardsAt { values: [0.0; MAX_GUARDS], rates: [0.0; MAX_GUARDS] };
+        for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
+            at.values[g] = sys.guard_value(g, z);
+            // A guard above zero has been passed: its rate matters to no one.
+            if at.values[g] <= 0.0 {
+                at.rates[g] = sys.guard_rate(g, z);
+            }
+        }
+        at
+    }
+
+    /// The earliest time at which a guard (not in `passed`) reaches zero if it kept its
+    /// present slope; infinite if none is rising towards zero.
+    pub(crate) fn predicted_crossing(&self, sys: &ModeSystem, passed: u8) -> f64 {
+        let mut earliest = f64::INFINITY;
+        for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
+            let (value, rate) = (self.values[g], self.rates[g]);
+            if value <= 0.0 && rate > 0.0 {
                 earliest = earliest.min(-value / rate);
             }
         }
+        earliest
     }
-    earliest
 }
 
 /// The first search window ends this many times past the earliest predicted crossing.

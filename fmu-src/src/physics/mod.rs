@@ -35,7 +35,7 @@ use cylinder::{CylinderParams, CylinderState};
 use driven_cylinder::DrivenCylinder;
 use driver::{Mode, MODES};
 use exact_integrator::{
-    locate_event, may_cross, predicted_crossing, ModeSystem, Propagator, PropagatorCache,
+    locate_event, may_cross, GuardsAt, ModeSystem, Propagator, PropagatorCache,
 };
 use hbridge::Digital;
 use outer_loop::{LoopParams, OuterLoop};
