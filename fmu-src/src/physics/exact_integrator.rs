@@ -31,7 +31,7 @@ const MAX_GUARDS: usize = 8;
 const CACHE_SLOTS: usize = 32;
 
 /// One number per guard.
-pub(crate) type PerGuard = [f64; MAX_GUARDS];
+type PerGuard = [f64; MAX_GUARDS];
 
 /// The linear system of one mode: dynamics, exit guards (leave when `guard . z > 0`),
 /// and the sub-step lengths that keep |lambda|*h bounded.
@@ -326,8 +326,9 @@ pub(crate) fn may_cross(
 /// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
 /// guard and the state there. Searched in windows short enough for a Taylor polynomial
 /// of the exact solution. The first window ends a few times past `predicted`, the earliest
-/// crossing the guards' slopes predict ([`predicted_crossing`]): a command step's slewing
-/// ends within nanoseconds, and a window that short needs a few Taylor terms, not two dozen.
+/// crossing the guards' slopes predict ([`GuardsAt::predicted_crossing`]): a command step's
+/// slewing ends within nanoseconds, and a window that short needs a few Taylor terms, not
+/// two dozen.
 pub(crate) fn locate_event(
     sys: &ModeSystem,
     z0: &Vector,
