@@ -199,7 +199,7 @@ impl Physics {
                 let guards = (!(at_fixed_point && propagator.has_matrix()))
                     .then(|| GuardsAt::new(sys, &z, passed));
                 let predicted =
-                    guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing(sys, passed));
+                    guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing(sys));
                 let next = (predicted >= h).then(|| propagate(&z));
                 let search = match next {
                     None => true,
@@ -213,7 +213,7 @@ impl Physics {
                     }
                     Some(next) => {
                         let guards = guards.unwrap_or_else(|| GuardsAt::new(sys, &z, passed));
-                        may_cross(sys, &guards, &next, h, passed)
+                        may_cross(sys, &guards, &next, h)
                     }
                 };
                 if search {

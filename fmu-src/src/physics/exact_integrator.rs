@@ -289,16 +289,11 @@ const GUARD_SAMPLES: usize = 16;
 
 /// Could a guard (not in `passed`) have turned positive between `z0` and `z1` (`h`
 /// apart)? True when it goes from <= 0 to > 0, or when the tangents at both ends meet
-/// above zero (a bump). `at_start`: the guards at `z0` ([`GuardsAt::new`]).
-pub(crate) fn may_cross(
-    sys: &ModeSystem,
-    at_start: &GuardsAt,
-    z1: &Vector,
-    h: f64,
-    passed: u8,
-) -> bool {
+/// above zero (a bump). `at_start`: the guards at `z0` ([`GuardsAt::new`]), whose
+/// `passed` ones are left out.
+pub(crate) fn may_cross(sys: &ModeSystem, at_start: &GuardsAt, z1: &Vector, h: f64) -> bool {
     (0..sys.n_guards).any(|k| {
-        if passed & 1 << k != 0 {
+        if at_start.passed & 1 << k != 0 {
             return false;
         }
         let g0 = at_start.values[k];
@@ -386,15 +381,16 @@ pub(crate) fn locate_event(
 }
 
 /// The guards' values and rates at the start of a sub-step, shared by the crossing's
-/// prediction and the check after the sub-step.
+/// prediction and the check after the sub-step. Guards in `passed` are not evaluated.
 pub(crate) struct GuardsAt {
     values: PerGuard,
     rates: PerGuard,
+    passed: u8,
 }
 
 impl GuardsAt {
     pub(crate) fn new(sys: &ModeSystem, z: &Vector, passed: u8) -> GuardsAt {
-        let mut at = GuardsAt { values: [0.0; MAX_GUARDS], rates: [0.0; MAX_GUARDS] };
+        let mut at = GuardsAt { values: [0.0; MAX_GUARDS], rates: [0.0; MAX_GUARDS], passed };
         for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
             at.values[g] = sys.guard_value(g, z);
             // A guard above zero has been passed: its rate matters to no one.
@@ -407,9 +403,9 @@ impl GuardsAt {
 
     /// The earliest time at which a guard (not in `passed`) reaches zero if it kept its
     /// present slope; infinite if none is rising towards zero.
-    pub(crate) fn predicted_crossing(&self, sys: &ModeSystem, passed: u8) -> f64 {
+    pub(crate) fn predicted_crossing(&self, sys: &ModeSystem) -> f64 {
         let mut earliest = f64::INFINITY;
-        for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
+        for g in (0..sys.n_guards).filter(|g| self.passed & 1 << g == 0) {
             let (value, rate) = (self.values[g], self.rates[g]);
             if value <= 0.0 && rate > 0.0 {
                 earliest = earliest.min(-value / rate);
