@@ -114,18 +114,11 @@ impl Model {
         if initialized {
             check_x_ref_fits(x_ref, stroke)?;
         }
-        // A retune checks the parameters together and may still refuse: keep the old values.
-        let before = (initialized && retune).then_some(state.values);
+        if initialized && retune {
+            return state.retune(&mut changes.into_iter(), self.time);
+        }
         for (index, value) in changes {
             state.values[index] = value;
-        }
-        if let Some(before) = before {
-            let rebuilt = params(&state.values)
-                .and_then(|p| state.physics.retune(&p, &inputs(&state.values), self.time));
-            if let Err(e) = rebuilt {
-                state.values = before;
-                return Err(e);
-            }
         }
         state.stale |= !initialized;
         Ok(())
@@ -394,6 +387,31 @@ fn control_mode(v: &[f64; N_VARIABLES]) -> ControlMode {
 }
 
 impl State {
+    /// Applies `changes` that include new tunable parameters and rebuilds the physics from
+    /// the state reached; a retune checks the parameters together and may still refuse,
+    /// and then the old values stay. Out of line: the rebuild's temporaries take tens of
+    /// kilobytes of stack, which every setter would otherwise reserve and probe on each
+    /// call, inputs included.
+    #[cold]
+    #[inline(never)]
+    fn retune(
+        &mut self,
+        changes: &mut dyn Iterator<Item = (usize, f64)>,
+        time: f64,
+    ) -> Result<(), String> {
+        let before = self.values;
+        for (index, value) in changes {
+            self.values[index] = value;
+        }
+        let rebuilt =
+            params(&self.values).and_then(|p| self.physics.retune(&p, &inputs(&self.values), time));
+        if let Err(e) = rebuilt {
+            self.values = before;
+            return Err(e);
+        }
+        Ok(())
+    }
+
     /// Writes the physics' outputs into their value references.
     fn write_outputs(&mut self) {
         let o: Outputs = self.physics.outputs();
