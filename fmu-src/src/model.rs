@@ -69,14 +69,20 @@ impl Model {
 
     /// Value by value reference (index into the variable table); `None` for an unknown reference.
     pub fn get(&self, index: usize) -> Option<f64> {
-        if index == vr::TIME {
-            return Some(self.time);
-        }
-        let var = VARIABLES.get(index)?;
-        if !self.initialized && var.causality == Causality::Output {
+        VARIABLES.get(index)?;
+        Some(self.reader()(index))
+    }
+
+    /// Reads values by value reference (known ones: the index must be in the table) with
+    /// one look at the state for all of them; before initialisation the outputs are
+    /// brought up to date first.
+    pub fn reader(&self) -> impl Fn(usize) -> f64 + '_ {
+        if !self.initialized {
             self.refresh_before_start();
         }
-        Some(self.state.borrow().values[index])
+        let state = self.state.borrow();
+        let time = self.time;
+        move |index| if index == vr::TIME { time } else { state.values[index] }
     }
 
     /// Stores a parameter or input after checking type and range; see [`Model::set_all`].
@@ -173,9 +179,24 @@ impl Model {
     /// state from before the call.
     pub fn do_step(&mut self, current_time: f64, step: f64) -> Result<StepEvents, String> {
         self.check_step(current_time, step)?;
+        self.do_checked_step(current_time, step)
+    }
+
+    /// [`Model::do_step`] after [`Model::check_step`] has passed: for the FMI layer, which
+    /// checks first to tell a refused step (nothing changes) from a failed one.
+    pub(crate) fn do_checked_step(
+        &mut self,
+        current_time: f64,
+        step: f64,
+    ) -> Result<StepEvents, String> {
         let state = self.state.get_mut();
-        let events = state.physics.step(&inputs(&state.values), self.time, step)?;
-        state.write_outputs();
+        let inputs = inputs(&state.values);
+        // The outputs written after the last step are those of a step that changes nothing.
+        let rests = state.physics.rests(&inputs, step);
+        let events = state.physics.step(&inputs, self.time, step)?;
+        if !rests {
+            state.write_outputs();
+        }
         self.time = current_time + step;
         Ok(events)
     }

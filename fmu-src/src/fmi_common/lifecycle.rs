@@ -76,7 +76,7 @@ impl Instance {
             }
         }
         let conditions = InputWarning::ALL.map(|w| self.model.input_warning(w));
-        match self.model.do_step(t, h) {
+        match self.model.do_checked_step(t, h) {
             Ok(events) => {
                 self.log_events(t, h, events);
                 Ok(self.warn_about_inputs(t, conditions))

@@ -165,15 +165,12 @@ impl Instance {
         let (vrs, out) = unsafe {
             (self.slice("valueReferences", vrs, n_vr)?, self.slice_mut("values", values, n_values)?)
         };
+        for &vr in vrs {
+            self.resolve::<A>(vr)?;
+        }
+        let read = self.model.reader();
         for (&vr, slot) in vrs.iter().zip(out.iter_mut()) {
-            let index = self.resolve::<A>(vr)?;
-            match self.model.get(index) {
-                Some(v) => *slot = A::to_c(v),
-                None => {
-                    return self
-                        .error(&format!("the model has no value for {}", VARIABLES[index].name))
-                }
-            }
+            *slot = A::to_c(read(vr as usize));
         }
         Ok(Status::OK)
     }

@@ -27,6 +27,18 @@ fn rest_key(i: &Inputs, step: f64) -> RestKey {
 }
 
 impl Physics {
+    /// Whether a step of `step` with `inputs` changes nothing: the last step had the same
+    /// inputs and size, no clock runs, and it left the state as it was, bit for bit.
+    pub(crate) fn rests(&self, inputs: &Inputs, step: f64) -> bool {
+        self.resting == Some(rest_key(inputs, step)) && self.clocks_idle()
+    }
+
+    /// No sampling or PWM clock will ever tick (the loops are continuous or absent).
+    fn clocks_idle(&self) -> bool {
+        self.digital.events_until(&self.params.hbridge, f64::INFINITY) == 0
+            && self.outer.events_until(&self.params.loops, f64::INFINITY) == 0
+    }
+
     /// Advances from `t_start` by `step` seconds with `inputs` held constant.
     /// On error the state is left as it was.
     pub(crate) fn advance(
@@ -35,12 +47,11 @@ impl Physics {
         t_start: f64,
         step: f64,
     ) -> Result<StepEvents, String> {
-        let key = rest_key(inputs, step);
-        let clocks_idle = self.digital.events_until(&self.params.hbridge, f64::INFINITY) == 0
-            && self.outer.events_until(&self.params.loops, f64::INFINITY) == 0;
-        if clocks_idle && self.resting == Some(key) {
+        if self.rests(inputs, step) {
             return Ok(StepEvents::default());
         }
+        let key = rest_key(inputs, step);
+        let clocks_idle = self.clocks_idle();
         let saved =
             (self.z, self.mode, self.stops, self.digital, self.outer, self.cylinder, self.p_supply);
         // A piston through the end of the cylinder is a broken state, refused like any error.
