@@ -281,19 +281,37 @@ impl Model {
 
 /// Whether variable `index` may take `value`: a parameter or input, within its type and
 /// range, and (after initialisation) not a fixed parameter.
+#[inline]
 fn settable(index: usize, value: f64, initialized: bool) -> Result<(), String> {
-    let var = VARIABLES.get(index).ok_or_else(|| format!("unknown value reference {index}"))?;
-    match (var.causality, var.variability) {
-        (Causality::Parameter, Variability::Fixed) if initialized => {
-            return Err(format!(
-                "{} is a fixed parameter: it can only be set before initialisation ends",
-                var.name
-            ));
-        }
-        (Causality::Parameter | Causality::Input, _) => {}
-        (causality, _) => return Err(format!("{} is {causality:?}: it cannot be set", var.name)),
+    match VARIABLES.get(index) {
+        Some(var) if may_be_set(var.causality, var.variability, initialized) => var.check(value),
+        _ => Err(not_settable(index)),
     }
-    var.check(value)
+}
+
+/// Parameters and inputs may be set, fixed parameters only until initialisation ends.
+fn may_be_set(causality: Causality, variability: Variability, initialized: bool) -> bool {
+    match (causality, variability) {
+        (Causality::Parameter, Variability::Fixed) => !initialized,
+        (Causality::Parameter | Causality::Input, _) => true,
+        _ => false,
+    }
+}
+
+/// Why [`settable`] refuses `index` (a message is only built for a refusal).
+#[cold]
+#[inline(never)]
+fn not_settable(index: usize) -> String {
+    let Some(var) = VARIABLES.get(index) else {
+        return format!("unknown value reference {index}");
+    };
+    match (var.causality, var.variability) {
+        (Causality::Parameter, Variability::Fixed) => format!(
+            "{} is a fixed parameter: it can only be set before initialisation ends",
+            var.name
+        ),
+        (causality, _) => format!("{} is {causality:?}: it cannot be set", var.name),
+    }
 }
 
 /// The rules between inputs and parameters that the table's ranges cannot express:
@@ -338,10 +356,11 @@ impl InputWarning {
 const POSITION_AT_REST: f64 = 1e-6;
 
 impl Model {
-    /// Does `warning`'s condition hold for the inputs in force (cheap, no allocation)?
-    pub fn input_warning(&self, warning: InputWarning) -> bool {
+    /// Which conditions of [`InputWarning::ALL`] hold for the inputs in force (cheap, no
+    /// allocation, one look at the state for all).
+    pub fn input_warnings(&self) -> [bool; InputWarning::ALL.len()] {
         let v = &self.state.borrow().values;
-        match warning {
+        InputWarning::ALL.map(|warning| match warning {
             InputWarning::CurrentAboveRating => {
                 control_mode(v) == ControlMode::Current && v[vr::I_REF].abs() > VALVE_RATED_CURRENT
             }
@@ -352,7 +371,7 @@ impl Model {
                 v[vr::V_SUPPLY] == 0.0 && !ideal && asks_for_motion(v)
             }
             InputWarning::NoHydraulicSupply => v[vr::P_SUPPLY] == 0.0 && asks_for_motion(v),
-        }
+        })
     }
 
     /// The log line for `warning`, naming the inputs.

@@ -72,36 +72,55 @@ impl Variable {
         matches!(self.causality, Causality::Parameter | Causality::Input)
     }
     /// Checks a value against type and range; the message names the variable and the allowed range.
+    #[inline]
     pub fn check(&self, value: f64) -> Result<(), String> {
+        if self.accepts(value) {
+            Ok(())
+        } else {
+            Err(self.refusal(value))
+        }
+    }
+
+    /// Is `value` finite, of the variable's type and within its range?
+    #[inline]
+    fn accepts(&self, value: f64) -> bool {
+        let typed = match self.ty {
+            VarType::Real => true,
+            VarType::Boolean => value == 0.0 || value == 1.0,
+            VarType::Enumeration(_) => value.fract() == 0.0,
+        };
+        let above_min = match self.min {
+            Some(min) if self.min_exclusive => value > min,
+            Some(min) => value >= min,
+            None => true,
+        };
+        let below_max = match self.max {
+            Some(max) => value <= max,
+            None => true,
+        };
+        // NaN fails every comparison, infinities are refused even without a bound.
+        value.is_finite() && typed && above_min && below_max
+    }
+
+    /// Why [`Variable::check`] refuses `value`. Out of line: setters call `check` on every
+    /// value, and the messages' formatting would weigh on each call.
+    #[cold]
+    #[inline(never)]
+    fn refusal(&self, value: f64) -> String {
         if !value.is_finite() {
-            return Err(format!("{} = {value} rejected: the value must be finite", self.name));
+            return format!("{} = {value} rejected: the value must be finite", self.name);
         }
         match self.ty {
             VarType::Boolean if value != 0.0 && value != 1.0 => {
-                return Err(format!("{} = {value} rejected: a Boolean is 0 or 1", self.name));
+                format!("{} = {value} rejected: a Boolean is 0 or 1", self.name)
             }
             VarType::Enumeration(_) if value.fract() != 0.0 => {
-                return Err(format!(
-                    "{} = {value} rejected: an enumeration value is an integer",
-                    self.name
-                ));
+                format!("{} = {value} rejected: an enumeration value is an integer", self.name)
             }
-            _ => {}
+            _ => {
+                format!("{} = {value} rejected: allowed range is {}", self.name, self.range_text())
+            }
         }
-        let below = match self.min {
-            Some(min) if self.min_exclusive => value <= min,
-            Some(min) => value < min,
-            None => false,
-        };
-        let above = matches!(self.max, Some(max) if value > max);
-        if below || above {
-            return Err(format!(
-                "{} = {value} rejected: allowed range is {}",
-                self.name,
-                self.range_text()
-            ));
-        }
-        Ok(())
     }
     pub fn range_text(&self) -> String {
         let lo = match self.min {

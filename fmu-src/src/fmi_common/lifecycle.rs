@@ -75,7 +75,7 @@ impl Instance {
                 ));
             }
         }
-        let conditions = InputWarning::ALL.map(|w| self.model.input_warning(w));
+        let conditions = self.model.input_warnings();
         match self.model.do_checked_step(t, h) {
             Ok(events) => {
                 self.log_events(t, h, events);

@@ -114,7 +114,19 @@ impl Instance {
 
     /// May variable `index` be set in the current state? (The table's
     /// [`settable_in`].)
+    #[inline]
     fn check_settable(&self, index: usize) -> Result<(), Status> {
+        let var = &VARIABLES[index];
+        match settable_in(var.causality, var.variability) {
+            Some(allowed) if allowed.contains(self.state) => Ok(()),
+            _ => self.refuse_setting(index),
+        }
+    }
+
+    /// Error for setting variable `index`, which [`Instance::check_settable`] refused.
+    #[cold]
+    #[inline(never)]
+    fn refuse_setting(&self, index: usize) -> Result<(), Status> {
         let var = &VARIABLES[index];
         let Some(allowed) = settable_in(var.causality, var.variability) else {
             let kind = if var.causality == Causality::Output {
@@ -124,24 +136,21 @@ impl Instance {
             };
             return self.error(&format!("{} is {kind} and cannot be set", var.name));
         };
-        if !allowed.contains(self.state) {
-            let kind = match (var.causality, var.variability) {
-                (Causality::Input, _) => "an input",
-                (_, Variability::Fixed) => {
-                    "a fixed parameter (structure or hardware): it can be set only before \
-                     initialisation ends (or after Reset); the tunable parameters and the \
-                     inputs can be set during the run"
-                }
-                _ => "a tunable parameter",
-            };
-            return self.error(&format!(
-                "{} is {kind}; it cannot be set in state {} (only in {})",
-                var.name,
-                self.state.name(self.version),
-                allowed.names(self.version)
-            ));
-        }
-        Ok(())
+        let kind = match (var.causality, var.variability) {
+            (Causality::Input, _) => "an input",
+            (_, Variability::Fixed) => {
+                "a fixed parameter (structure or hardware): it can be set only before \
+                 initialisation ends (or after Reset); the tunable parameters and the \
+                 inputs can be set during the run"
+            }
+            _ => "a tunable parameter",
+        };
+        self.error(&format!(
+            "{} is {kind}; it cannot be set in state {} (only in {})",
+            var.name,
+            self.state.name(self.version),
+            allowed.names(self.version)
+        ))
     }
 
     /// Typed getter shared by `fmi2GetReal/Integer/Boolean` and `fmi3Get<numeric>/Boolean`.
