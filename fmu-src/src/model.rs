@@ -211,30 +211,47 @@ impl Model {
     /// away from the FMU time, a step too small to advance it. An error of
     /// [`Model::do_step`] after this passed is a failure of the computation.
     pub fn check_step(&self, current_time: f64, step: f64) -> Result<(), String> {
+        let tolerance = communication_point_tolerance(self.time, step);
+        // NaN fails every comparison; each refusal is worded in `step_refusal`.
+        let fine = self.initialized
+            && step.is_finite()
+            && step > 0.0
+            && current_time.is_finite()
+            && (current_time - self.time).abs() <= tolerance
+            && current_time + step > self.time;
+        if fine {
+            Ok(())
+        } else {
+            Err(self.step_refusal(current_time, step))
+        }
+    }
+
+    /// Why [`Model::check_step`] refuses a step. Out of line: the messages' formatting would
+    /// weigh on every step.
+    #[cold]
+    #[inline(never)]
+    fn step_refusal(&self, current_time: f64, step: f64) -> String {
         if !self.initialized {
-            return Err("doStep before initialisation ended".into());
+            return "doStep before initialisation ended".into();
         }
         if !step.is_finite() || step <= 0.0 {
-            return Err(format!("communication step size {step} is not a positive finite number"));
+            return format!("communication step size {step} is not a positive finite number");
         }
         if !current_time.is_finite() {
-            return Err(format!("currentCommunicationPoint {current_time} is not finite"));
+            return format!("currentCommunicationPoint {current_time} is not finite");
         }
         let tolerance = communication_point_tolerance(self.time, step);
         if (current_time - self.time).abs() > tolerance {
-            return Err(format!(
+            return format!(
                 "currentCommunicationPoint {current_time} does not match the FMU time {} \
                  (tolerance {tolerance:e} s)",
                 self.time
-            ));
+            );
         }
-        if current_time + step <= self.time {
-            return Err(format!(
-                "a step of {step} s from {current_time} does not advance the FMU time {}",
-                self.time
-            ));
-        }
-        Ok(())
+        format!(
+            "a step of {step} s from {current_time} does not advance the FMU time {}",
+            self.time
+        )
     }
 
     /// Versioned, self-checking byte form of the whole instance (no pointers).
@@ -360,17 +377,19 @@ impl Model {
     /// allocation, one look at the state for all).
     pub fn input_warnings(&self) -> [bool; InputWarning::ALL.len()] {
         let v = &self.state.borrow().values;
+        let mode = control_mode(v);
+        let moving = asks_for_motion(mode, v);
         InputWarning::ALL.map(|warning| match warning {
             InputWarning::CurrentAboveRating => {
-                control_mode(v) == ControlMode::Current && v[vr::I_REF].abs() > VALVE_RATED_CURRENT
+                mode == ControlMode::Current && v[vr::I_REF].abs() > VALVE_RATED_CURRENT
             }
             InputWarning::NoDriverSupply => {
                 // The ideal current driver has no supply to miss.
                 let ideal =
                     matches!(DriverKind::from_value(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
-                v[vr::V_SUPPLY] == 0.0 && !ideal && asks_for_motion(v)
+                v[vr::V_SUPPLY] == 0.0 && !ideal && moving
             }
-            InputWarning::NoHydraulicSupply => v[vr::P_SUPPLY] == 0.0 && asks_for_motion(v),
+            InputWarning::NoHydraulicSupply => v[vr::P_SUPPLY] == 0.0 && moving,
         })
     }
 
@@ -403,8 +422,8 @@ impl Model {
 }
 
 /// Does the command of the active control mode ask the actuator to move?
-fn asks_for_motion(v: &[f64; N_VARIABLES]) -> bool {
-    match control_mode(v) {
+fn asks_for_motion(mode: ControlMode, v: &[f64; N_VARIABLES]) -> bool {
+    match mode {
         ControlMode::Current => v[vr::I_REF] != 0.0,
         ControlMode::Flow => v[vr::Q_REF] != 0.0,
         ControlMode::Position => (v[vr::X_REF] - v[vr::X_PISTON]).abs() > POSITION_AT_REST,

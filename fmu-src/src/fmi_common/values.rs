@@ -174,12 +174,9 @@ impl Instance {
         let (vrs, out) = unsafe {
             (self.slice("valueReferences", vrs, n_vr)?, self.slice_mut("values", values, n_values)?)
         };
-        for &vr in vrs {
-            self.resolve::<A>(vr)?;
-        }
         let read = self.model.reader();
         for (&vr, slot) in vrs.iter().zip(out.iter_mut()) {
-            *slot = A::to_c(read(vr as usize));
+            *slot = A::to_c(read(self.resolve::<A>(vr)?));
         }
         Ok(Status::OK)
     }
