@@ -108,9 +108,12 @@ impl Model {
         let mut retune = false;
         let (mut x_ref, mut stroke) = (state.values[vr::X_REF], state.values[vr::CYLINDER_STROKE]);
         for (index, value) in changes.clone() {
-            settable(index, value, initialized)?;
-            retune |= VARIABLES[index].causality == Causality::Parameter
-                && state.values[index].to_bits() != value.to_bits();
+            // A value the model holds already was accepted when it was set (or is a start
+            // value): only who may set what is checked again (importers resend unchanged
+            // inputs at every step).
+            let held = state.values.get(index).is_some_and(|v| v.to_bits() == value.to_bits());
+            settable(index, value, initialized, held)?;
+            retune |= !held && VARIABLES[index].causality == Causality::Parameter;
             match index {
                 vr::X_REF => x_ref = value,
                 vr::CYLINDER_STROKE => stroke = value,
@@ -297,11 +300,18 @@ impl Model {
 }
 
 /// Whether variable `index` may take `value`: a parameter or input, within its type and
-/// range, and (after initialisation) not a fixed parameter.
+/// range (unless `held`: the model holds that value already, so it passed), and (after
+/// initialisation) not a fixed parameter.
 #[inline]
-fn settable(index: usize, value: f64, initialized: bool) -> Result<(), String> {
+fn settable(index: usize, value: f64, initialized: bool, held: bool) -> Result<(), String> {
     match VARIABLES.get(index) {
-        Some(var) if may_be_set(var.causality, var.variability, initialized) => var.check(value),
+        Some(var) if may_be_set(var.causality, var.variability, initialized) => {
+            if held {
+                Ok(())
+            } else {
+                var.check(value)
+            }
+        }
         _ => Err(not_settable(index)),
     }
 }
