@@ -193,13 +193,14 @@ impl Model {
         step: f64,
     ) -> Result<StepEvents, String> {
         let state = self.state.get_mut();
-        let inputs = inputs(&state.values);
-        // The outputs written after the last step are those of a step that changes nothing.
-        let rests = state.physics.rests(&inputs, step);
-        let events = state.physics.step(&inputs, self.time, step)?;
-        if !rests {
-            state.write_outputs();
-        }
+        // A step that changes nothing keeps the outputs written after the last one.
+        let events = match state.physics.step(&inputs(&state.values), self.time, step)? {
+            Some(events) => {
+                state.write_outputs();
+                events
+            }
+            None => StepEvents::default(),
+        };
         self.time = current_time + step;
         Ok(events)
     }
@@ -214,47 +215,55 @@ impl Model {
     /// away from the FMU time, a step too small to advance it. An error of
     /// [`Model::do_step`] after this passed is a failure of the computation.
     pub fn check_step(&self, current_time: f64, step: f64) -> Result<(), String> {
-        let tolerance = communication_point_tolerance(self.time, step);
-        // NaN fails every comparison; each refusal is worded in `step_refusal`.
-        let fine = self.initialized
-            && step.is_finite()
-            && step > 0.0
-            && current_time.is_finite()
-            && (current_time - self.time).abs() <= tolerance
-            && current_time + step > self.time;
-        if fine {
-            Ok(())
-        } else {
-            Err(self.step_refusal(current_time, step))
+        match self.step_fault(current_time, step) {
+            None => Ok(()),
+            Some(fault) => Err(self.step_refusal(current_time, step, fault)),
         }
     }
 
-    /// Why [`Model::check_step`] refuses a step. Out of line: the messages' formatting would
-    /// weigh on every step.
-    #[cold]
-    #[inline(never)]
-    fn step_refusal(&self, current_time: f64, step: f64) -> String {
+    /// What is wrong with a step, if anything: the rules of [`Model::check_step`], in the
+    /// order its messages take them.
+    #[inline]
+    fn step_fault(&self, current_time: f64, step: f64) -> Option<StepFault> {
         if !self.initialized {
-            return "doStep before initialisation ended".into();
+            return Some(StepFault::BeforeInitialisation);
         }
         if !step.is_finite() || step <= 0.0 {
-            return format!("communication step size {step} is not a positive finite number");
+            return Some(StepFault::StepSize);
         }
         if !current_time.is_finite() {
-            return format!("currentCommunicationPoint {current_time} is not finite");
+            return Some(StepFault::TimeNotFinite);
         }
         let tolerance = communication_point_tolerance(self.time, step);
         if (current_time - self.time).abs() > tolerance {
-            return format!(
+            return Some(StepFault::OffTime { tolerance });
+        }
+        (current_time + step <= self.time).then_some(StepFault::NoAdvance)
+    }
+
+    /// The message for a step [`Model::step_fault`] refuses. Out of line: the formatting
+    /// would weigh on every step.
+    #[cold]
+    #[inline(never)]
+    fn step_refusal(&self, current_time: f64, step: f64, fault: StepFault) -> String {
+        match fault {
+            StepFault::BeforeInitialisation => "doStep before initialisation ended".into(),
+            StepFault::StepSize => {
+                format!("communication step size {step} is not a positive finite number")
+            }
+            StepFault::TimeNotFinite => {
+                format!("currentCommunicationPoint {current_time} is not finite")
+            }
+            StepFault::OffTime { tolerance } => format!(
                 "currentCommunicationPoint {current_time} does not match the FMU time {} \
                  (tolerance {tolerance:e} s)",
                 self.time
-            );
+            ),
+            StepFault::NoAdvance => format!(
+                "a step of {step} s from {current_time} does not advance the FMU time {}",
+                self.time
+            ),
         }
-        format!(
-            "a step of {step} s from {current_time} does not advance the FMU time {}",
-            self.time
-        )
     }
 
     /// Versioned, self-checking byte form of the whole instance (no pointers).
@@ -603,6 +612,21 @@ pub(crate) fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
         },
         solver_rtol: v[vr::SOLVER_RTOL],
     })
+}
+
+/// Why [`Model::check_step`] refuses a step.
+#[derive(Clone, Copy)]
+enum StepFault {
+    BeforeInitialisation,
+    /// Not positive and finite.
+    StepSize,
+    TimeNotFinite,
+    /// The communication point is further than `tolerance` from the FMU time.
+    OffTime {
+        tolerance: f64,
+    },
+    /// Too small to advance the FMU time.
+    NoAdvance,
 }
 
 /// How far an importer's communication point may be from the FMU time: the rounding of

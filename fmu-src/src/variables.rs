@@ -39,6 +39,15 @@ pub enum Initial {
     Calculated,
 }
 
+/// Why [`Variable::check`] refuses a value.
+#[derive(Clone, Copy)]
+enum ValueFault {
+    NotFinite,
+    NotBoolean,
+    NotInteger,
+    OutOfRange,
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct Variable {
     pub name: &'static str,
@@ -74,53 +83,46 @@ impl Variable {
     /// Checks a value against type and range; the message names the variable and the allowed range.
     #[inline]
     pub fn check(&self, value: f64) -> Result<(), String> {
-        if self.accepts(value) {
-            Ok(())
-        } else {
-            Err(self.refusal(value))
+        match self.fault(value) {
+            None => Ok(()),
+            Some(fault) => Err(self.refusal(value, fault)),
         }
     }
 
-    /// Is `value` finite, of the variable's type and within its range?
+    /// What is wrong with `value` for this variable, if anything.
     #[inline]
-    fn accepts(&self, value: f64) -> bool {
-        let typed = match self.ty {
-            VarType::Real => true,
-            VarType::Boolean => value == 0.0 || value == 1.0,
-            VarType::Enumeration(_) => value.fract() == 0.0,
-        };
-        let above_min = match self.min {
-            Some(min) if self.min_exclusive => value > min,
-            Some(min) => value >= min,
-            None => true,
-        };
-        let below_max = match self.max {
-            Some(max) => value <= max,
-            None => true,
-        };
-        // NaN fails every comparison, infinities are refused even without a bound.
-        value.is_finite() && typed && above_min && below_max
-    }
-
-    /// Why [`Variable::check`] refuses `value`. Out of line: setters call `check` on every
-    /// value, and the messages' formatting would weigh on each call.
-    #[cold]
-    #[inline(never)]
-    fn refusal(&self, value: f64) -> String {
+    fn fault(&self, value: f64) -> Option<ValueFault> {
         if !value.is_finite() {
-            return format!("{} = {value} rejected: the value must be finite", self.name);
+            return Some(ValueFault::NotFinite);
         }
         match self.ty {
             VarType::Boolean if value != 0.0 && value != 1.0 => {
-                format!("{} = {value} rejected: a Boolean is 0 or 1", self.name)
+                return Some(ValueFault::NotBoolean)
             }
-            VarType::Enumeration(_) if value.fract() != 0.0 => {
-                format!("{} = {value} rejected: an enumeration value is an integer", self.name)
-            }
-            _ => {
-                format!("{} = {value} rejected: allowed range is {}", self.name, self.range_text())
-            }
+            VarType::Enumeration(_) if value.fract() != 0.0 => return Some(ValueFault::NotInteger),
+            _ => {}
         }
+        let below = match self.min {
+            Some(min) if self.min_exclusive => value <= min,
+            Some(min) => value < min,
+            None => false,
+        };
+        let above = matches!(self.max, Some(max) if value > max);
+        (below || above).then_some(ValueFault::OutOfRange)
+    }
+
+    /// The message for a value [`Variable::fault`] refuses. Out of line: setters call `check`
+    /// on every value, and the formatting would weigh on each call.
+    #[cold]
+    #[inline(never)]
+    fn refusal(&self, value: f64, fault: ValueFault) -> String {
+        let why = match fault {
+            ValueFault::NotFinite => "the value must be finite".to_string(),
+            ValueFault::NotBoolean => "a Boolean is 0 or 1".to_string(),
+            ValueFault::NotInteger => "an enumeration value is an integer".to_string(),
+            ValueFault::OutOfRange => format!("allowed range is {}", self.range_text()),
+        };
+        format!("{} = {value} rejected: {why}", self.name)
     }
     pub fn range_text(&self) -> String {
         let lo = match self.min {

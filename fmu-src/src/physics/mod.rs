@@ -359,19 +359,24 @@ impl Physics {
     /// One communication step: [`Physics::advance`] (which refuses, leaving the state as it
     /// was, a step that ends with the piston through the end of the cylinder) after refusing a
     /// supply at or above the relief valves' setting; reports relief valves that opened.
+    /// `None` for a step that changes nothing ([`Physics::rests`]; its supply passed with the
+    /// step before): the state, and so the outputs, stay as they are.
     pub(crate) fn step(
         &mut self,
         inputs: &Inputs,
         t_start: f64,
         step: f64,
-    ) -> Result<StepEvents, String> {
+    ) -> Result<Option<StepEvents>, String> {
+        if self.rests(inputs, step) {
+            return Ok(None);
+        }
         let c = &self.params.cylinder;
         c.check_supply(inputs.p_supply)?;
         let relief_before = cylinder::relief_open(c, &self.cylinder.state);
         let mut events = self.advance(inputs, t_start, step)?;
         let relief_after = cylinder::relief_open(&self.params.cylinder, &self.cylinder.state);
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);
-        Ok(events)
+        Ok(Some(events))
     }
 }
 
