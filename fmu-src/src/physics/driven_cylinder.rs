@@ -66,13 +66,7 @@ impl DrivenCylinder {
             self.state = CylinderState::from_array(&y);
             return Ok(());
         }
-        let a = &sys.a;
-        let (az0, az1) = (state::rate(a, z0), state::rate(a, z1));
-        let path = SpoolPath::new(
-            h,
-            [z0[XS], az0[XS], a.row(XS).dot(&az0.transpose())],
-            [z1[XS], az1[XS], a.row(XS).dot(&az1.transpose())],
-        );
+        let path = SpoolPath::new(h, sys.spool_motion(z0), sys.spool_motion(z1));
         // The port laws change sides at null spool, a kink in the flows that Rodas4 would
         // reject its way across: the piece is split there.
         let mut done = 0.0;

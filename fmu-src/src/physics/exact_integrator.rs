@@ -16,7 +16,7 @@
 //! digital PI loop, see [`super::hbridge`]); the step is cut at each, so switching instants are
 //! exact and do not depend on the communication step.
 
-use super::state::{propagate, rate, Mat, Vector, VF};
+use super::state::{propagate, rate, Mat, Vector, VF, XS};
 use super::valve::{self, Stops};
 use super::Coefficients;
 
@@ -44,6 +44,15 @@ pub(crate) struct ModeSystem {
     n_guards: usize,
     /// Spectral radius of `a` (1/s).
     pub(crate) radius: f64,
+    /// Rows of `A` and `A^2` that give the spool's velocity and acceleration from `z`.
+    spool_rows: [Vector; 2],
+}
+
+/// The rows of `a` and `a^2` for the spool: its velocity and acceleration at any state in
+/// two dot products (the cylinder reads them at both ends of every piece).
+fn spool_rows(a: &Mat) -> [Vector; 2] {
+    let velocity = a.row(XS).transpose();
+    [velocity, a.transpose() * velocity]
 }
 
 impl ModeSystem {
@@ -56,6 +65,7 @@ impl ModeSystem {
             guard_rates: [Vector::zeros(); MAX_GUARDS],
             n_guards: 0,
             radius,
+            spool_rows: spool_rows(&a),
         };
         for &g in guards {
             sys.push_guard(g);
@@ -88,6 +98,7 @@ impl ModeSystem {
         let mut sys = *self;
         let flapper_accel = self.a.row(VF).transpose();
         valve::hold_at_stops(stops, &mut sys.a);
+        sys.spool_rows = spool_rows(&sys.a);
         // The free system's spectral radius bounds the held one's well enough for sub-steps.
         sys.n_guards = 0;
         for k in 0..self.n_guards {
@@ -95,6 +106,11 @@ impl ModeSystem {
         }
         valve::stop_guards(c, stops, flapper_accel, |g| sys.push_guard(g));
         sys
+    }
+
+    /// The spool's position, velocity and acceleration at `z`.
+    pub(crate) fn spool_motion(&self, z: &Vector) -> [f64; 3] {
+        [z[XS], self.spool_rows[0].dot(z), self.spool_rows[1].dot(z)]
     }
 
     /// Sub-steps keeping |lambda|*h below `theta`; capped so that a huge step stays bounded
