@@ -339,11 +339,17 @@ pub(crate) fn derivatives(
     let inflow_b = -q_b + area_b * state.v + q_internal - q_external_b - relief_b;
     let dp_a = params.beta / volume_a * inflow_a * cavitation_factor(params, state.p_a, inflow_a);
     let dp_b = params.beta / volume_b * inflow_b * cavitation_factor(params, state.p_b, inflow_b);
-    let force = state.p_a * area_a - state.p_b * area_b - friction(params, state.v)
-        + f_ext
-        + endstop_force(params, state.x, state.v);
-    [dp_a, dp_b, state.v, force / params.mass]
+    [dp_a, dp_b, state.v, net_force(params, state, f_ext) / params.mass]
 }
+
+/// The force on the piston and load: pressures, friction, the load and the end stops (N).
+#[inline]
+pub(crate) fn net_force(params: &CylinderParams, state: &CylinderState, f_ext: f64) -> f64 {
+    state.p_a * params.area_a() - state.p_b * params.area_b() - friction(params, state.v)
+        + f_ext
+        + endstop_force(params, state.x, state.v)
+}
+
 /// Writes the hydraulic side's outputs at a state into `out`.
 pub(crate) fn write_outputs(
     params: &CylinderParams,

@@ -1,5 +1,6 @@
 //! The cylinder as the exact integrator drives it: along the spool's exact path over each
-//! piece of a step, by the Rosenbrock integrator, or not at all while it rests.
+//! piece of a step, by the Rosenbrock integrator; not at all while it rests, and by its
+//! speed alone while it glides.
 
 use super::*;
 
@@ -20,7 +21,7 @@ impl DrivenCylinder {
     /// Advances the cylinder over a piece of `h` seconds in which the valve (driven by
     /// `sys`) went from `z0` to `z1`: the spool path is the quintic Hermite interpolant of
     /// its exact position, velocity and acceleration at both ends. A cylinder at rest behind
-    /// a still spool is left as it is.
+    /// a still spool is left as it is; one gliding behind it moves on at its speed.
     pub(crate) fn drive(
         &mut self,
         sys: &ModeSystem,
@@ -29,27 +30,28 @@ impl DrivenCylinder {
         (z0, z1, h): (&Vector, &Vector, f64),
         inputs: &Held,
     ) -> Result<(), String> {
-        if (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9) {
+        let spool_still = (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9);
+        if spool_still {
             let key = [z0[XS].to_bits(), inputs.p_supply.to_bits(), inputs.f_ext.to_bits()];
             if self.rest == Some(key) {
                 return Ok(());
             }
-            // At rest means an equilibrium, whatever the piece length: drifting less than
-            // 1e-10 of its scale in a second (a short piece must not make motion look still).
-            // dx/dt is v: a moving piston needs no model evaluation to tell.
-            let still =
-                |d: f64, n: usize| d.abs() * REST_HORIZON <= 1e-10 * rosenbrock::STATE_SCALE[n];
-            if still(self.state.v, cylinder::X)
+            // At rest means an equilibrium, whatever the piece length: no state drifting
+            // ([`settled`]). dx/dt is v: a moving piston needs no model evaluation to tell.
+            if settled(self.state.v, cylinder::X)
                 && cylinder::derivatives(params, &self.state, z0[XS], inputs.p_supply, inputs.f_ext)
                     .iter()
                     .enumerate()
-                    .all(|(n, &d)| still(d, n))
+                    .all(|(n, &d)| settled(d, n))
             {
                 self.rest = Some(key);
                 return Ok(());
             }
         }
         self.rest = None;
+        if spool_still && self.glide(params, z0[XS], inputs, h) {
+            return Ok(());
+        }
         if h <= TINY_PIECE {
             // Far below every cylinder time constant (|lambda| h < 2e-5): one Euler step.
             let f = cylinder::derivatives(
@@ -87,4 +89,35 @@ impl DrivenCylinder {
         }
         Ok(())
     }
+
+    /// A piston gliding behind a still spool: both pressures and the speed settled, clear of
+    /// the end stops over the whole piece, where nothing depends on the position (the
+    /// chamber volumes only scale the pressure rates, which are settled). Its motion over
+    /// `h` is then `x += v h` and nothing else changes: one model evaluation instead of a
+    /// Rosenbrock step (a constant command drives the piston so across most of its stroke).
+    fn glide(&mut self, params: &CylinderParams, x_s: f64, inputs: &Held, h: f64) -> bool {
+        let state = &self.state;
+        let half = 0.5 * params.stroke;
+        let x_end = state.x + state.v * h;
+        if !(state.x.abs() < half && x_end.abs() < half) {
+            return false;
+        }
+        // The force balance first: while the piston accelerates, no flow needs evaluating.
+        if !settled(cylinder::net_force(params, state, inputs.f_ext) / params.mass, cylinder::V) {
+            return false;
+        }
+        let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.f_ext);
+        if ![cylinder::PA, cylinder::PB, cylinder::V].iter().all(|&n| settled(d[n], n)) {
+            return false;
+        }
+        self.state.x = x_end;
+        true
+    }
+}
+
+/// Whether a rate `d` of state `n` is settled: it would move the state less than 1e-10 of
+/// its scale in [`REST_HORIZON`] (whatever the piece length: a short piece must not make
+/// motion look still).
+fn settled(d: f64, n: usize) -> bool {
+    d.abs() * REST_HORIZON <= 1e-10 * rosenbrock::STATE_SCALE[n]
 }
