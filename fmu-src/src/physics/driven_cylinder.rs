@@ -38,18 +38,17 @@ impl DrivenCylinder {
             }
             // At rest means an equilibrium, whatever the piece length: no state drifting
             // ([`settled`]). dx/dt is v: a moving piston needs no model evaluation to tell.
-            if settled(self.state.v, cylinder::X)
-                && cylinder::derivatives(params, &self.state, z0[XS], inputs.p_supply, inputs.f_ext)
-                    .iter()
-                    .enumerate()
-                    .all(|(n, &d)| settled(d, n))
-            {
+            if settled(self.state.v, cylinder::X) && self.steady(params, z0[XS], inputs) {
                 self.rest = Some(key);
                 return Ok(());
             }
         }
         self.rest = None;
-        if spool_still && self.glide(params, z0[XS], inputs, h) {
+        // A steady piston that is not at rest is moving: it may glide.
+        if spool_still
+            && !settled(self.state.v, cylinder::X)
+            && self.glide(params, z0[XS], inputs, h)
+        {
             return Ok(());
         }
         if h <= TINY_PIECE {
@@ -90,24 +89,26 @@ impl DrivenCylinder {
         Ok(())
     }
 
-    /// A piston gliding behind a still spool: both pressures and the speed settled, clear of
-    /// the end stops over the whole piece, where nothing depends on the position (the
-    /// chamber volumes only scale the pressure rates, which are settled). Its motion over
-    /// `h` is then `x += v h` and nothing else changes: one model evaluation instead of a
-    /// Rosenbrock step (a constant command drives the piston so across most of its stroke).
-    fn glide(&mut self, params: &CylinderParams, x_s: f64, inputs: &Held, h: f64) -> bool {
+    /// Both pressures and the speed settled behind a spool held at `x_s` (the rates of
+    /// [`cylinder::derivatives`] but the position's). The force balance first: while the
+    /// piston accelerates, no flow needs evaluating.
+    fn steady(&self, params: &CylinderParams, x_s: f64, inputs: &Held) -> bool {
         let state = &self.state;
+        settled(cylinder::net_force(params, state, inputs.f_ext) / params.mass, cylinder::V) && {
+            let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.f_ext);
+            settled(d[cylinder::PA], cylinder::PA) && settled(d[cylinder::PB], cylinder::PB)
+        }
+    }
+
+    /// A piston gliding behind a still spool: steady, clear of the end stops over the whole
+    /// piece, where nothing depends on the position (the chamber volumes only scale the
+    /// pressure rates, which are settled). Its motion over `h` is then `x += v h` and nothing
+    /// else changes: one model evaluation instead of a Rosenbrock step (a constant command
+    /// drives the piston so across most of its stroke).
+    fn glide(&mut self, params: &CylinderParams, x_s: f64, inputs: &Held, h: f64) -> bool {
         let half = 0.5 * params.stroke;
-        let x_end = state.x + state.v * h;
-        if !(state.x.abs() < half && x_end.abs() < half) {
-            return false;
-        }
-        // The force balance first: while the piston accelerates, no flow needs evaluating.
-        if !settled(cylinder::net_force(params, state, inputs.f_ext) / params.mass, cylinder::V) {
-            return false;
-        }
-        let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.f_ext);
-        if ![cylinder::PA, cylinder::PB, cylinder::V].iter().all(|&n| settled(d[n], n)) {
+        let x_end = self.state.x + self.state.v * h;
+        if !(self.state.x.abs() < half && x_end.abs() < half && self.steady(params, x_s, inputs)) {
             return false;
         }
         self.state.x = x_end;
