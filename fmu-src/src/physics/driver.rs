@@ -10,7 +10,7 @@
 
 use super::hbridge::Digital;
 use super::params::DriverKind;
-use super::state::{unit, Mat, Vector, I, IREF, ONE, U, UI, VMAX};
+use super::state::{dot, unit, Mat, Vector, I, IREF, ONE, U, UI, VMAX};
 use super::{Coefficients, StepEvents};
 
 /// Driver modes. The PI drivers move between the last seven.
@@ -135,7 +135,7 @@ pub(crate) fn consistent_mode<'a>(
     }
     let vmax = z[VMAX];
     let e = z[IREF] - z[I];
-    let u_lin = u_lin_row(c).dot(z);
+    let u_lin = dot(&u_lin_row(c), z);
     let target = u_lin.clamp(-vmax, vmax);
     let tol = 1e-9 * (1.0 + vmax);
     if z[U] < target - tol {
@@ -176,7 +176,7 @@ pub(crate) fn project_onto(c: &Coefficients, digital: &Digital, z: &mut Vector, 
         Mode::Ideal => z[I] = z[IREF],
         Mode::Voltage => z[U] = (c.r_total * z[IREF]).clamp(-z[VMAX], z[VMAX]),
         Mode::Switched => z[U] = digital.output(z[VMAX]),
-        Mode::Linear => z[U] = u_lin_row(c).dot(z),
+        Mode::Linear => z[U] = dot(&u_lin_row(c), z),
         Mode::HighFrozen | Mode::HighIntegrating => z[U] = z[VMAX],
         Mode::LowFrozen | Mode::LowIntegrating => z[U] = -z[VMAX],
         Mode::SlewUp | Mode::SlewDown => {}

@@ -16,7 +16,7 @@
 //! digital PI loop, see [`super::hbridge`]); the step is cut at each, so switching instants are
 //! exact and do not depend on the communication step.
 
-use super::state::{propagate, rate, Mat, Vector, VF, XS};
+use super::state::{dot, propagate, rate, Mat, Vector, VF, XS};
 use super::valve::{self, Stops};
 use super::Coefficients;
 
@@ -81,12 +81,12 @@ impl ModeSystem {
 
     /// Guard `g`'s value at `z`.
     fn guard_value(&self, g: usize, z: &Vector) -> f64 {
-        self.guards[g].dot(z)
+        dot(&self.guards[g], z)
     }
 
     /// Guard `g`'s rate of change at `z`.
     fn guard_rate(&self, g: usize, z: &Vector) -> f64 {
-        self.guard_rates[g].dot(z)
+        dot(&self.guard_rates[g], z)
     }
 
     /// This driver mode with the valve's travel stops: a part at a stop is held there
@@ -110,7 +110,7 @@ impl ModeSystem {
 
     /// The spool's position, velocity and acceleration at `z`.
     pub(crate) fn spool_motion(&self, z: &Vector) -> [f64; 3] {
-        [z[XS], self.spool_rows[0].dot(z), self.spool_rows[1].dot(z)]
+        [z[XS], dot(&self.spool_rows[0], z), dot(&self.spool_rows[1], z)]
     }
 
     /// Sub-steps keeping |lambda|*h below `theta`; capped so that a huge step stays bounded

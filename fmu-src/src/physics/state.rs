@@ -52,6 +52,21 @@ pub(crate) fn rate(a: &Mat, z: &Vector) -> Vector {
     out
 }
 
+/// `a . b`, summed in two lanes (nalgebra's general `dot` spent ~37 instructions on nine
+/// entries; guards, their rates and the spool's rows are dotted with the state throughout
+/// the event search).
+#[inline]
+pub(crate) fn dot(a: &Vector, b: &Vector) -> f64 {
+    let (a, b) = (a.as_slice(), b.as_slice());
+    let mut lanes = [0.0; 2];
+    for pair in 0..N / 2 {
+        for (lane, sum) in lanes.iter_mut().enumerate() {
+            *sum += a[2 * pair + lane] * b[2 * pair + lane];
+        }
+    }
+    lanes[0] + lanes[1] + a[N - 1] * b[N - 1]
+}
+
 /// `p z` for a propagator `exp(A t)` (constant rows those of the identity): the constants
 /// are carried over exactly.
 #[inline]
