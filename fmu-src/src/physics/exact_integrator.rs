@@ -16,7 +16,7 @@
 //! digital PI loop, see [`super::hbridge`]); the step is cut at each, so switching instants are
 //! exact and do not depend on the communication step.
 
-use super::state::{dot, propagate, rate, Mat, Vector, VF, XS};
+use super::state::{dot, propagate, rate, rate_of_derivative, Mat, Vector, VF, XS};
 use super::valve::{self, Stops};
 use super::Coefficients;
 
@@ -250,10 +250,11 @@ fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
     let terms = taylor_terms(sys.radius * h);
     let mut z = *z0;
     for _ in 0..pieces {
-        let mut term = z;
-        let mut sum = z;
-        for k in 1..terms {
-            term = rate(&sys.a, &term) * (h / k as f64);
+        // `terms` >= 2; past the first term the constants' entries are zero.
+        let mut term = rate(&sys.a, &z) * h;
+        let mut sum = z + term;
+        for reciprocal in &RECIPROCALS[2..terms] {
+            term = rate_of_derivative(&sys.a, &term) * (h * reciprocal);
             sum += term;
         }
         z = sum;
@@ -262,7 +263,7 @@ fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
 }
 
 /// Terms of the Taylor series of exp(A t) with |lambda| t = `scale` <= 1 that reach
-/// rounding: the first neglected one, `scale^n / n!`, is below 1e-18.
+/// rounding: the first neglected one, `scale^n / n!`, is below 1e-18. At least 2.
 fn taylor_terms(scale: f64) -> usize {
     let mut terms = 1;
     let mut bound = 1.0;
@@ -357,8 +358,10 @@ pub(crate) fn locate_event(
         // Taylor terms of z(t) = exp(A t) z: terms[k] = A^k z / k!
         let mut terms = [Vector::zeros(); TAYLOR_TERMS];
         terms[0] = start;
-        for k in 1..n {
-            terms[k] = rate(&sys.a, &terms[k - 1]) * RECIPROCALS[k];
+        // `n` >= 2; past the first term the constants' entries are zero.
+        terms[1] = rate(&sys.a, &start);
+        for k in 2..n {
+            terms[k] = rate_of_derivative(&sys.a, &terms[k - 1]) * RECIPROCALS[k];
         }
         let terms = &terms[..n];
         let mut first: Option<(f64, usize)> = None;

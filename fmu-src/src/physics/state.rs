@@ -41,10 +41,23 @@ pub(crate) const EVOLVING: usize = 6;
 /// computed (two thirds of a full product; the event search and the Taylor series are made of these).
 #[inline]
 pub(crate) fn rate(a: &Mat, z: &Vector) -> Vector {
-    let columns = a.as_slice();
+    product_of_columns(a, z, N)
+}
+
+/// `a d` for a derivative `d` of the state, whose constants' entries are zero (every Taylor
+/// term after the first): their columns are skipped too, a third less work, same result.
+#[inline]
+pub(crate) fn rate_of_derivative(a: &Mat, d: &Vector) -> Vector {
+    product_of_columns(a, d, EVOLVING)
+}
+
+/// The evolving rows of `a z` from the first `columns` columns of `a`.
+#[inline]
+fn product_of_columns(a: &Mat, z: &Vector, columns: usize) -> Vector {
+    let entries = a.as_slice();
     let mut out = Vector::zeros();
-    for (c, &zc) in z.iter().enumerate() {
-        let column = &columns[c * N..c * N + EVOLVING];
+    for (c, &zc) in z.iter().enumerate().take(columns) {
+        let column = &entries[c * N..c * N + EVOLVING];
         for (o, &a_rc) in out.iter_mut().zip(column) {
             *o += a_rc * zc;
         }
