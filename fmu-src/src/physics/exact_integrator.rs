@@ -41,6 +41,8 @@ pub(crate) struct ModeSystem {
     guards: [Vector; MAX_GUARDS],
     /// d(guard)/dt = (A^T guard) . z
     guard_rates: [Vector; MAX_GUARDS],
+    /// How many Taylor coefficients of each guard along a trajectory can be nonzero ([`nonzero_terms`]).
+    guard_terms: [usize; MAX_GUARDS],
     n_guards: usize,
     /// Spectral radius of `a` (1/s).
     pub(crate) radius: f64,
@@ -55,6 +57,23 @@ fn spool_rows(a: &Mat) -> [Vector; 2] {
     [velocity, a.transpose() * velocity]
 }
 
+/// Powers of `A^T` looked at by [`nonzero_terms`].
+const SHORT_GUARD: usize = 4;
+
+/// How many Taylor coefficients of `guard . z(t)` can be nonzero: the first `k` >= 1 with
+/// `(A^T)^k guard` exactly zero, up to [`SHORT_GUARD`] (a rail guard while slewing is a
+/// straight line: 2), else all of them. The event search computes no more.
+fn nonzero_terms(a: &Mat, guard: Vector) -> usize {
+    let mut row = guard;
+    for k in 1..=SHORT_GUARD {
+        row = a.transpose() * row;
+        if row.iter().all(|&x| x == 0.0) {
+            return k;
+        }
+    }
+    TAYLOR_TERMS
+}
+
 impl ModeSystem {
     /// The system `z' = a z` with exit guards `guards`.
     pub(crate) fn new(a: Mat, guards: &[Vector]) -> ModeSystem {
@@ -63,6 +82,7 @@ impl ModeSystem {
             a,
             guards: [Vector::zeros(); MAX_GUARDS],
             guard_rates: [Vector::zeros(); MAX_GUARDS],
+            guard_terms: [TAYLOR_TERMS; MAX_GUARDS],
             n_guards: 0,
             radius,
             spool_rows: spool_rows(&a),
@@ -76,6 +96,7 @@ impl ModeSystem {
     fn push_guard(&mut self, guard: Vector) {
         self.guards[self.n_guards] = guard;
         self.guard_rates[self.n_guards] = self.a.transpose() * guard;
+        self.guard_terms[self.n_guards] = nonzero_terms(&self.a, guard);
         self.n_guards += 1;
     }
 
@@ -367,13 +388,15 @@ pub(crate) fn locate_event(
         let mut first: Option<(f64, usize)> = None;
         for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
             let mut coef = [0.0; TAYLOR_TERMS];
-            for (c, t) in coef.iter_mut().zip(terms) {
-                *c = sys.guard_value(g, t);
-            }
+            coef[0] = sys.guard_value(g, &terms[0]);
             if coef[0] > 0.0 {
                 continue; // passed before this window (edge triggered)
             }
-            if let Some(tau) = first_positive(&coef[..n], w, first.map_or(w, |f| f.0)) {
+            let used = n.min(sys.guard_terms[g]);
+            for (c, t) in coef[1..used].iter_mut().zip(&terms[1..]) {
+                *c = sys.guard_value(g, t);
+            }
+            if let Some(tau) = first_positive(&coef[..used], w, first.map_or(w, |f| f.0)) {
                 first = Some((tau, g));
             }
         }
@@ -514,4 +537,54 @@ const REFINE_ITERATIONS: usize = 12;
 /// The polynomial and its derivative at `t` (one Horner pass).
 fn horner_with_slope(coef: &[f64], t: f64) -> (f64, f64) {
     coef.iter().rev().fold((0.0, 0.0), |(p, dp), c| (p * t + c, dp * t + p))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::driver::Mode;
+    use crate::physics::state::{U, VMAX};
+    use crate::physics::{mode_system, MODES};
+
+    /// The Taylor coefficients that the event search leaves out are zero along an exact
+    /// trajectory. While slewing the output moves at the slew rate exactly, so its distance
+    /// to either rail is a straight line (2 coefficients); with the paper's tuning the PI
+    /// zero sits on the coil's pole (Ki = Kp R / L) and the slew's end is a parabola (3);
+    /// detuned, it takes all of them.
+    #[test]
+    fn guards_the_search_shortens_are_polynomials_along_the_trajectory() {
+        let tuned = crate::model::start_params();
+        let mut detuned = tuned;
+        detuned.opamp.ki *= 1.5;
+        let z = Vector::from_fn(|k, _| [2e-3, 1.5, 3.0, 1e-6, 1e-3, 2e-5, 5e-3, 72.0, 1.0][k]);
+        let t = 2e-4;
+        for (params, slew_end_terms) in [(tuned, 3), (detuned, TAYLOR_TERMS)] {
+            let c = Coefficients::new(&params).unwrap();
+            for mode in MODES {
+                let sys = mode_system(&c, mode);
+                let end = (sys.a * t).exp() * z;
+                for g in (0..sys.n_guards).filter(|&g| sys.guard_terms[g] < TAYLOR_TERMS) {
+                    // guard . z(t) from the coefficients the search takes.
+                    let (mut row, mut power) = (sys.guards[g], 1.0);
+                    let (mut polynomial, mut scale) = (0.0, 0.0);
+                    for k in 0..sys.guard_terms[g] {
+                        polynomial += dot(&row, &z) * power;
+                        scale += (dot(&row, &z) * power).abs();
+                        row = sys.a.transpose() * row;
+                        power *= t / (k + 1) as f64;
+                    }
+                    let exact = sys.guard_value(g, &end);
+                    assert!((exact - polynomial).abs() <= 1e-12 * scale, "{mode:?} guard {g}");
+                }
+            }
+            for mode in [Mode::SlewUp, Mode::SlewDown] {
+                let sys = mode_system(&c, mode);
+                for g in 0..sys.n_guards {
+                    let rail = sys.guards[g][U].abs() == 1.0 && sys.guards[g][VMAX].abs() == 1.0;
+                    let expected = if rail { 2 } else { slew_end_terms };
+                    assert_eq!(sys.guard_terms[g], expected, "{mode:?} guard {g}");
+                }
+            }
+        }
+    }
 }
