@@ -18,7 +18,7 @@ const SPOOL_PATH_ANGLE: f64 = 0.6;
 /// rad/s); the propagators bound them (a huge step stays bounded in time, its pieces coarser).
 fn spool_path_pieces(span: f64, wn: f64) -> usize {
     // The cast saturates: an overflowing count is bounded where it is used.
-    (span * wn / SPOOL_PATH_ANGLE).ceil().max(1.0) as usize
+    state::ceil_count(span * wn / SPOOL_PATH_ANGLE).max(1)
 }
 
 /// The key of [`Physics`]'s `resting`: the inputs and the step size, as bits.

@@ -16,7 +16,7 @@
 //! digital PI loop, see [`super::hbridge`]); the step is cut at each, so switching instants are
 //! exact and do not depend on the communication step.
 
-use super::state::{dot, propagate, rate, rate_of_derivative, Mat, Vector, VF, XS};
+use super::state::{ceil_count, dot, propagate, rate, rate_of_derivative, Mat, Vector, VF, XS};
 use super::valve::{self, Stops};
 use super::Coefficients;
 
@@ -137,7 +137,7 @@ impl ModeSystem {
     /// Sub-steps keeping |lambda|*h below `theta`; capped so that a huge step stays bounded
     /// in time (the propagation itself is exact at any length, only event search coarsens).
     pub(crate) fn substeps(&self, span: f64, theta: f64) -> usize {
-        ((span * self.radius / theta).ceil() as usize).clamp(1, MAX_SUBSTEPS)
+        ceil_count(span * self.radius / theta).clamp(1, MAX_SUBSTEPS)
     }
 }
 

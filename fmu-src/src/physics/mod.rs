@@ -404,6 +404,18 @@ mod tests {
         }
     }
 
+    /// Piece and sub-step counts round up as `ceil` does, saturating at both ends.
+    #[test]
+    fn counts_round_up_like_ceil() {
+        let cases = [0.0, -0.0, 0.3, 1.0, 1.0 + f64::EPSILON, 6.5, 2f64.powi(60), 1e30];
+        for x in cases {
+            assert_eq!(state::ceil_count(x), x.ceil() as usize, "{x}");
+        }
+        assert_eq!(state::ceil_count(f64::INFINITY), usize::MAX);
+        assert_eq!(state::ceil_count(f64::NAN), 0);
+        assert_eq!(state::ceil_count(-3.5), 0);
+    }
+
     /// Preparing the first step computes its propagators ahead (that step then computes no
     /// matrix exponential) and changes nothing else: the run continues bit for bit as an
     /// unprepared one, through steps of other sizes too.

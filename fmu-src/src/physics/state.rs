@@ -90,3 +90,16 @@ pub(crate) fn propagate(p: &Mat, z: &Vector) -> Vector {
     }
     out
 }
+
+/// `x.ceil() as usize` (saturating; NaN and negatives give 0) without the call: x86-64's
+/// baseline has no rounding instruction, so `ceil` is a libm call (~40 instructions) where
+/// every piece and sub-step count is taken.
+#[inline]
+pub(crate) fn ceil_count(x: f64) -> usize {
+    let whole = x as usize;
+    if (whole as f64) < x {
+        whole.saturating_add(1)
+    } else {
+        whole
+    }
+}
