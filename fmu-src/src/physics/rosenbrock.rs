@@ -215,6 +215,8 @@ pub(crate) fn advance_with_rate(
     let mut tau = 0.0;
     let mut step = if work.h_next > 0.0 { work.h_next } else { INITIAL_STEP };
     let mut rejected_last = false;
+    // The last rejected attempt from the current point: (step, error).
+    let mut rejection: Option<(f64, f64)> = None;
     // The linearisation at (tau, y), kept across rejected attempts from the same point.
     let mut lin: Option<Linearisation> = None;
     // Consecutive steps cut to a contact switch; bounded so a switch the state cannot be
@@ -281,6 +283,7 @@ pub(crate) fn advance_with_rate(
             rosenbrock_step(&RODAS4, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
         if err <= 1.0 {
             stats.accepted += 1;
+            rejection = None;
             lin = None;
             y = y_new;
             clamp_to_floor(params, &mut y, &mut stats);
@@ -316,7 +319,17 @@ pub(crate) fn advance_with_rate(
         } else {
             stats.rejected += 1;
             rejected_last = true;
-            let factor = (fourth_root(err) / SAFETY).min(1.0 / MIN_FACTOR);
+            // Order 4 is what the error should follow; where a second rejection from the
+            // same point shows it falling slower (a kink inside the step), use the order seen.
+            let root = match rejection {
+                Some((h0, e0)) if e0 > err && h0 > step => {
+                    let order = ((e0 / err).ln() / (h0 / step).ln()).clamp(1.0, 4.0);
+                    err.powf(1.0 / order)
+                }
+                _ => fourth_root(err),
+            };
+            rejection = Some((step, err));
+            let factor = (root / SAFETY).min(1.0 / MIN_FACTOR);
             step /= factor;
         }
     }
