@@ -179,10 +179,18 @@ impl Physics {
                 &self.systems[self.mode.index()]
             };
             // Between PWM edges by Taylor series, otherwise with a cached propagator; either
-            // way no sub-step longer than a piece of spool path may be.
+            // way no sub-step longer than a piece of spool path may be. A slew that ends
+            // inside the first sub-step (a command step's: within a microsecond) is searched
+            // at once, and the propagator of its span would never be applied (on a cache
+            // miss, an exponential for nothing): Taylor series serve if it lasts after all,
+            // on sub-steps they cover in one piece (others, and absurd parameters, go through
+            // the propagator's checks).
             let key = self.mode.index() + MODES.len() * self.stops.code();
             let pieces = spool_path_pieces(span, self.params.wn);
-            let propagator = if self.mode == Mode::Switched {
+            let first = span / pieces as f64;
+            let brief_slew = first * sys.radius <= 1.0
+                && driver::slew_time(&self.params, self.mode, &z).is_some_and(|t| t < first);
+            let propagator = if self.mode == Mode::Switched || brief_slew {
                 Propagator::taylor_only(sys, span, pieces)
             } else {
                 self.cache.get(key, sys, span, whole && done == 0.0, pieces)?

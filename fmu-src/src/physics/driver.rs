@@ -169,6 +169,16 @@ pub(crate) fn consistent_mode<'a>(
     }
 }
 
+/// How long a slewing mode takes to bring the output to the PI law's value (clamped to the
+/// rails) at the slew rate, were that value to stay where it is at `z`; `None` in the other
+/// modes. An estimate: the law moves with the coil current meanwhile.
+pub(crate) fn slew_time(c: &Coefficients, mode: Mode, z: &Vector) -> Option<f64> {
+    matches!(mode, Mode::SlewUp | Mode::SlewDown).then(|| {
+        let target = dot(&u_lin_row(c), z).clamp(-z[VMAX], z[VMAX]);
+        (target - z[U]).abs() / c.slew_rate
+    })
+}
+
 /// Puts the algebraic part of the state on the mode's manifold (after every propagation
 /// too, so held values stay exact rather than within rounding of exp()).
 pub(crate) fn project_onto(c: &Coefficients, digital: &Digital, z: &mut Vector, mode: Mode) {

@@ -404,6 +404,25 @@ mod tests {
         }
     }
 
+    /// A command step's slew ends within a microsecond, found by the event search before
+    /// any propagation: no propagator of the step's span is built for the slewing mode, only
+    /// the linear mode's for the rest of the step.
+    #[test]
+    fn a_brief_slew_builds_no_propagator_of_its_own() {
+        let p = crate::model::start_params();
+        assert_eq!(p.driver, DriverKind::OpampPi);
+        let inputs = |i_ref| Inputs { i_ref, ..crate::model::start_inputs() };
+        let mut physics = Physics::start(&p, &inputs(0.0), 0.0).unwrap();
+        physics.step(&inputs(0.0), 0.0, 1e-4).unwrap();
+        let before = physics.work();
+        // 0.1 mA: Kp di = 16 V, 0.8 us at the slew rate.
+        physics.step(&inputs(1e-4), 1e-4, 1e-4).unwrap();
+        let work = physics.work().since(&before);
+        assert_eq!(work.guard_locations, 1, "the slew's end searched once");
+        assert_eq!(work.exponentials, 1, "the linear mode's rest of the step only");
+        assert!(physics.z[I] > 0.5e-4, "the current follows: {} A", physics.z[I]);
+    }
+
     /// Piece and sub-step counts round up as `ceil` does, saturating at both ends.
     #[test]
     fn counts_round_up_like_ceil() {
