@@ -41,7 +41,8 @@ pub(crate) struct ModeSystem {
     guards: [Vector; MAX_GUARDS],
     /// d(guard)/dt = (A^T guard) . z
     guard_rates: [Vector; MAX_GUARDS],
-    /// How many Taylor coefficients of each guard along a trajectory can be nonzero ([`nonzero_terms`]).
+    /// How many Taylor coefficients of each guard along a trajectory can be nonzero
+    /// ([`nonzero_terms`]).
     guard_terms: [usize; MAX_GUARDS],
     n_guards: usize,
     /// Spectral radius of `a` (1/s).
