@@ -63,16 +63,13 @@ const SHORT_GUARD: usize = 4;
 
 /// How many Taylor coefficients of `guard . z(t)` can be nonzero: the first `k` >= 1 with
 /// `(A^T)^k guard` exactly zero, up to [`SHORT_GUARD`] (a rail guard while slewing is a
-/// straight line: 2), else all of them. The event search computes no more.
-fn nonzero_terms(a: &Mat, guard: Vector) -> usize {
-    let mut row = guard;
-    for k in 1..=SHORT_GUARD {
-        row = a.transpose() * row;
-        if row.iter().all(|&x| x == 0.0) {
-            return k;
-        }
-    }
-    TAYLOR_TERMS
+/// straight line: 2), else all of them. The event search computes no more. `rate` is
+/// `A^T guard`, the guard's rate row.
+fn nonzero_terms(a: &Mat, rate: Vector) -> usize {
+    std::iter::successors(Some(rate), |row| Some(a.transpose() * row))
+        .take(SHORT_GUARD)
+        .position(|row| row.iter().all(|&x| x == 0.0))
+        .map_or(TAYLOR_TERMS, |k| k + 1)
 }
 
 impl ModeSystem {
@@ -95,9 +92,10 @@ impl ModeSystem {
     }
 
     fn push_guard(&mut self, guard: Vector) {
+        let rate = self.a.transpose() * guard;
         self.guards[self.n_guards] = guard;
-        self.guard_rates[self.n_guards] = self.a.transpose() * guard;
-        self.guard_terms[self.n_guards] = nonzero_terms(&self.a, guard);
+        self.guard_rates[self.n_guards] = rate;
+        self.guard_terms[self.n_guards] = nonzero_terms(&self.a, rate);
         self.n_guards += 1;
     }
 
