@@ -104,6 +104,11 @@ impl ModeSystem {
         dot(&self.guards[g], z)
     }
 
+    /// The size of guard `g`'s terms at `z` (`sum |guard_i z_i|`): its rounding is a few ulp of it.
+    fn guard_scale(&self, g: usize, z: &Vector) -> f64 {
+        self.guards[g].iter().zip(z.iter()).map(|(a, b)| (a * b).abs()).sum()
+    }
+
     /// Guard `g`'s rate of change at `z`.
     fn guard_rate(&self, g: usize, z: &Vector) -> f64 {
         dot(&self.guard_rates[g], z)
@@ -368,6 +373,21 @@ pub(crate) fn locate_event(
     passed: u8,
     predicted: f64,
 ) -> Option<(f64, usize, Vector)> {
+    locate_closed_form(sys, z0, h, passed)
+        .unwrap_or_else(|| locate_sampled(sys, z0, h, passed, predicted))
+}
+
+/// [`locate_event`] for any guards: each guard's Taylor polynomial sampled per window.
+/// Kept out of line: the events of the moving workloads take the closed form, and inlined
+/// this search made `evolve` too large to inline into its caller.
+#[inline(never)]
+fn locate_sampled(
+    sys: &ModeSystem,
+    z0: &Vector,
+    h: f64,
+    passed: u8,
+    predicted: f64,
+) -> Option<(f64, usize, Vector)> {
     let longest = h / sys.substeps(h, THETA_FINE) as f64;
     let mut w = (PREDICTION_MARGIN * predicted).clamp(longest / 4096.0, longest);
     let mut start = *z0;
@@ -399,22 +419,8 @@ pub(crate) fn locate_event(
                 first = Some((tau, g));
             }
         }
-        if let Some((mut tau, g)) = first {
-            // The state handed on must be past the crossing as the mode logic evaluates it
-            // (on the vector, not the polynomial), or the mode may not change and the guard
-            // would be passed over: nudge forward past the rounding. First by 64 ulp of the
-            // window, a shift of the event of 1.4e-14 of it: from the crossing itself, 48 % of
-            // the gait's events needed a second evaluation of the state and 32 % a third or
-            // more (the slew's end weighs Kp i, ~800 V, against a rate of 2e7 V/s).
-            let mut nudge = 64.0 * f64::EPSILON * w;
-            tau = (tau + nudge).min(w);
-            nudge *= 2.0;
-            let mut at = horner_vec(terms, tau);
-            while sys.guard_value(g, &at) <= 0.0 && tau < w {
-                tau = (tau + nudge).min(w);
-                at = horner_vec(terms, tau);
-                nudge *= 2.0;
-            }
+        if let Some((tau, g)) = first {
+            let (tau, at) = past_crossing(sys, g, terms, tau, w);
             return Some((offset + tau, g, at));
         }
         start = horner_vec(terms, w);
@@ -422,6 +428,119 @@ pub(crate) fn locate_event(
         w = longest;
     }
     None
+}
+
+/// The state at a crossing `tau` of guard `g` inside a window `w` whose Taylor terms are
+/// `terms`, and the instant: the state handed on must be past the crossing as the mode
+/// logic evaluates it (on the vector, not the polynomial), or the mode may not change and
+/// the guard would be passed over. So it is nudged forward past the rounding: by 64 ulp of
+/// the window (from the crossing itself, 48 % of the gait's events needed a second
+/// evaluation of the state and 32 % a third or more), or by the time the guard takes to rise
+/// through its own rounding where that is longer (half of the flow loop's slew ends needed
+/// 5-16 doublings of 64 ulp: a slew of nanoseconds, a guard of ~800 V terms).
+fn past_crossing(sys: &ModeSystem, g: usize, terms: &[Vector], tau: f64, w: f64) -> (f64, Vector) {
+    let mut nudge = 64.0 * f64::EPSILON * w;
+    let mut tau = (tau + nudge).min(w);
+    let mut at = horner_vec(terms, tau);
+    if sys.guard_value(g, &at) <= 0.0 && tau < w {
+        let rate = sys.guard_rate(g, &at);
+        if rate > 0.0 {
+            nudge = nudge.max(4.0 * f64::EPSILON * sys.guard_scale(g, &at) / rate);
+        }
+        while sys.guard_value(g, &at) <= 0.0 && tau < w {
+            tau = (tau + nudge).min(w);
+            at = horner_vec(terms, tau);
+            nudge *= 2.0;
+        }
+    }
+    (tau, at)
+}
+
+/// Guards with at most this many Taylor coefficients along the trajectory (a line or a
+/// parabola: the slew's ends with the paper's tuning) have their crossings in closed form.
+const CLOSED_FORM_TERMS: usize = 3;
+
+/// [`locate_event`] where every guard (not in `passed`) is a line or a parabola in time:
+/// each crossing in closed form over the whole of `h`, then the state there from a window
+/// [`PREDICTION_MARGIN`] times as long as the crossing's time. The sampled search spent
+/// about 1.7k instructions on each of the gait's slews, most of them sampling and refining
+/// the polynomials. `None` where this does not apply (other guards, or a crossing too far
+/// for one Taylor window): the sampled search decides.
+fn locate_closed_form(
+    sys: &ModeSystem,
+    z0: &Vector,
+    h: f64,
+    passed: u8,
+) -> Option<Option<(f64, usize, Vector)>> {
+    let open = || (0..sys.n_guards).filter(|g| passed & 1 << g == 0);
+    if open().any(|g| sys.guard_terms[g] > CLOSED_FORM_TERMS) {
+        return None;
+    }
+    let mut terms = [Vector::zeros(); TAYLOR_TERMS];
+    terms[0] = *z0;
+    terms[1] = rate(&sys.a, z0);
+    terms[2] = rate_of_derivative(&sys.a, &terms[1]) * RECIPROCALS[2];
+    let mut first: Option<(f64, usize)> = None;
+    for g in open() {
+        let c0 = sys.guard_value(g, &terms[0]);
+        if c0 > 0.0 {
+            continue; // passed before (edge triggered)
+        }
+        let c1 = sys.guard_value(g, &terms[1]);
+        let c2 = if sys.guard_terms[g] > 2 { sys.guard_value(g, &terms[2]) } else { 0.0 };
+        let limit = first.map_or(h, |f| f.0);
+        if let Some(tau) = first_positive_quadratic([c0, c1, c2], limit) {
+            first = Some((tau, g));
+        }
+    }
+    let Some((tau, g)) = first else {
+        return Some(None);
+    };
+    let w = (PREDICTION_MARGIN * tau).clamp(f64::EPSILON * h, h);
+    if sys.radius * w > THETA_FINE {
+        return None;
+    }
+    let n = taylor_terms(sys.radius * w);
+    for k in 3..n {
+        terms[k] = rate_of_derivative(&sys.a, &terms[k - 1]) * RECIPROCALS[k];
+    }
+    let (tau, at) = past_crossing(sys, g, &terms[..n.max(3)], tau, w);
+    Some(Some((tau, g, at)))
+}
+
+/// First `t` in `[0, limit]` where `c0 + c1 t + c2 t^2` (`c0 <= 0`) turns positive, within
+/// rounding of the root (the caller steps past it).
+fn first_positive_quadratic([c0, c1, c2]: [f64; 3], limit: f64) -> Option<f64> {
+    let root = if c0 == 0.0 {
+        // Rising at once, or after a dip to the other root `-c1/c2`.
+        if c1 > 0.0 || (c1 == 0.0 && c2 > 0.0) {
+            Some(0.0)
+        } else if c2 > 0.0 {
+            Some(-c1 / c2)
+        } else {
+            None
+        }
+    } else if c2 == 0.0 {
+        (c1 > 0.0).then(|| -c0 / c1)
+    } else {
+        let discriminant = c1 * c1 - 4.0 * c2 * c0;
+        if discriminant.is_nan() || discriminant < 0.0 {
+            return None;
+        }
+        // The roots without cancellation: q / c2 and c0 / q (q != 0 as c0 != 0).
+        let q = -0.5 * (c1 + discriminant.sqrt().copysign(c1));
+        let (r1, r2) = (q / c2, c0 / q);
+        if c2 > 0.0 {
+            // Opening upwards from c0 < 0: the roots straddle zero, the crossing is the later.
+            Some(r1.max(r2))
+        } else if c1 > 0.0 {
+            // Opening downwards: above zero between two positive roots.
+            Some(r1.min(r2))
+        } else {
+            None
+        }
+    };
+    root.filter(|&t| t >= 0.0 && t <= limit)
 }
 
 /// The guards' values and rates at the start of a sub-step, shared by the crossing's
@@ -547,6 +666,63 @@ mod tests {
     use crate::physics::driver::Mode;
     use crate::physics::state::{U, VMAX};
     use crate::physics::{mode_system, MODES};
+
+    #[test]
+    fn a_line_or_parabola_crosses_where_its_roots_say() {
+        let cross = |c: [f64; 3]| first_positive_quadratic(c, 10.0);
+        assert_eq!(cross([-2.0, 1.0, 0.0]), Some(2.0), "a rising line");
+        assert_eq!(cross([-2.0, -1.0, 0.0]), None, "a falling line");
+        assert_eq!(cross([-6.0, 1.0, 1.0]), Some(2.0), "upwards: the later root (-3 and 2)");
+        assert_eq!(cross([-3.0, 4.0, -1.0]), Some(1.0), "downwards: the earlier of 1 and 3");
+        assert_eq!(cross([-3.0, -4.0, -1.0]), None, "downwards, roots -1 and -3");
+        assert_eq!(cross([-1.0, 1.0, -1.0]), None, "downwards, never reaching zero");
+        assert_eq!(cross([0.0, 1.0, -1.0]), Some(0.0), "on zero and rising");
+        assert_eq!(cross([0.0, -1.0, 1.0]), Some(1.0), "on zero, dipping first");
+        assert_eq!(cross([0.0, -1.0, -1.0]), None);
+        assert_eq!(cross([-200.0, 1.0, 0.0]), None, "beyond the limit");
+        // No cancellation where c2 t^2 is tiny against c1 t (the slew's end: a near line).
+        let root = cross([-1e-7, 2e7, 1e3]).unwrap();
+        assert!((root - 5e-15).abs() <= 4.0 * f64::EPSILON * 5e-15, "{root:e}");
+    }
+
+    /// The crossings in closed form are those the sampled search finds, to rounding, and
+    /// so are the states there: slews up and down of various lengths, towards the PI law's
+    /// value or a rail.
+    #[test]
+    fn closed_form_crossings_match_the_sampled_search() {
+        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let mut searched = 0;
+        for mode in [Mode::SlewUp, Mode::SlewDown] {
+            let sys = mode_system(&c, mode);
+            let sign = if mode == Mode::SlewUp { 1.0 } else { -1.0 };
+            for (u0, i_ref) in [(0.0, 1e-6), (0.0, 5e-3), (-60.0, 1e-3), (65.0, -3e-4), (0.0, 1e-3)]
+            {
+                let mut z =
+                    Vector::from_fn(|k, _| [0.0, 0.0, 0.0, 1e-6, 0.0, 2e-5, 0.0, 72.0, 1.0][k]);
+                z[U] = sign * u0;
+                z[crate::physics::state::IREF] = sign * i_ref;
+                let h = 5e-5;
+                let closed = locate_closed_form(&sys, &z, h, 0).expect("slew guards are short");
+                let predicted = GuardsAt::new(&sys, &z, 0).predicted_crossing(&sys);
+                let sampled = locate_sampled(&sys, &z, h, 0, predicted);
+                match (closed, sampled) {
+                    (Some((t1, g1, z1)), Some((t2, g2, z2))) => {
+                        searched += 1;
+                        assert_eq!(g1, g2, "{mode:?} {u0} {i_ref}");
+                        assert!(
+                            (t1 - t2).abs() <= 1e-12 * t2,
+                            "{mode:?} {u0} {i_ref}: {t1:e} {t2:e}"
+                        );
+                        let scale = z1.amax();
+                        assert!((z1 - z2).amax() <= 1e-12 * scale, "{mode:?} {u0} {i_ref}");
+                    }
+                    (None, None) => {}
+                    other => panic!("{mode:?} {u0} {i_ref}: {other:?}"),
+                }
+            }
+        }
+        assert!(searched >= 8, "most of these slews end inside the step: {searched}");
+    }
 
     /// The Taylor coefficients that the event search leaves out are zero along an exact
     /// trajectory. While slewing the output moves at the slew rate exactly, so its distance
