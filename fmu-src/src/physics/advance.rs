@@ -212,7 +212,7 @@ impl Physics {
                 // step's slewing ends within nanoseconds): search at once, without first
                 // propagating over a sub-step that the event will cut. A state that its
                 // propagator maps onto itself crosses nothing: no prediction needed.
-                let guards = (!(at_fixed_point && propagator.has_matrix()))
+                let mut guards = (!(at_fixed_point && propagator.has_matrix()))
                     .then(|| GuardsAt::new(sys, &z, passed));
                 let predicted =
                     guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing(sys));
@@ -228,13 +228,14 @@ impl Physics {
                         false
                     }
                     Some(next) => {
-                        let guards = guards.unwrap_or_else(|| GuardsAt::new(sys, &z, passed));
-                        may_cross(sys, &guards, &next, h)
+                        let guards = guards.get_or_insert_with(|| GuardsAt::new(sys, &z, passed));
+                        may_cross(sys, guards, &next, h)
                     }
                 };
                 if search {
                     self.work.guard_locations += 1;
-                    if let Some((tau, guard, at)) = locate_event(sys, &z, h, passed, predicted) {
+                    let guards = guards.get_or_insert_with(|| GuardsAt::new(sys, &z, passed));
+                    if let Some((tau, guard, at)) = locate_event(sys, &z, h, guards, predicted) {
                         let (z0, d) = pending.take().map_or((z, tau), |(z0, d)| (z0, d + tau));
                         if merge && d <= MERGE_SPAN {
                             pending = Some((z0, d));
