@@ -293,7 +293,7 @@ fn taylor_terms(scale: f64) -> usize {
     let mut terms = 1;
     let mut bound = 1.0;
     while terms < TAYLOR_TERMS && bound > 1e-18 {
-        bound *= scale / terms as f64;
+        bound *= scale * RECIPROCALS[terms];
         terms += 1;
     }
     terms
@@ -420,7 +420,7 @@ fn locate_sampled(
             }
         }
         if let Some((tau, g)) = first {
-            let (tau, at) = past_crossing(sys, g, terms, tau, w);
+            let (tau, at) = past_crossing(sys, g, terms, tau, (w, w));
             return Some((offset + tau, g, at));
         }
         start = horner_vec(terms, w);
@@ -438,17 +438,23 @@ fn locate_sampled(
 /// evaluation of the state and 32 % a third or more), or by the time the guard takes to rise
 /// through its own rounding where that is longer (half of the flow loop's slew ends needed
 /// 5-16 doublings of 64 ulp: a slew of nanoseconds, a guard of ~800 V terms).
-fn past_crossing(sys: &ModeSystem, g: usize, terms: &[Vector], tau: f64, w: f64) -> (f64, Vector) {
+fn past_crossing(
+    sys: &ModeSystem,
+    g: usize,
+    terms: &[Vector],
+    tau: f64,
+    (w, end): (f64, f64),
+) -> (f64, Vector) {
     let mut nudge = 64.0 * f64::EPSILON * w;
-    let mut tau = (tau + nudge).min(w);
+    let mut tau = (tau + nudge).min(end);
     let mut at = horner_vec(terms, tau);
-    if sys.guard_value(g, &at) <= 0.0 && tau < w {
+    if sys.guard_value(g, &at) <= 0.0 && tau < end {
         let rate = sys.guard_rate(g, &at);
         if rate > 0.0 {
             nudge = nudge.max(4.0 * f64::EPSILON * sys.guard_scale(g, &at) / rate);
         }
-        while sys.guard_value(g, &at) <= 0.0 && tau < w {
-            tau = (tau + nudge).min(w);
+        while sys.guard_value(g, &at) <= 0.0 && tau < end {
+            tau = (tau + nudge).min(end);
             at = horner_vec(terms, tau);
             nudge *= 2.0;
         }
@@ -466,8 +472,8 @@ const CLOSED_FORM_WINDOW_TERMS: usize = 12;
 const CLOSED_FORM_TERMS: usize = 3;
 
 /// [`locate_event`] where every guard (not in `passed`) is a line or a parabola in time:
-/// each crossing in closed form over the whole of `h`, then the state there from a window
-/// [`PREDICTION_MARGIN`] times as long as the crossing's time. The sampled search spent
+/// each crossing in closed form over the whole of `h`, then the state there from the Taylor
+/// polynomial of the trajectory up to just past it. The sampled search spent
 /// about 1.7k instructions on each of the gait's slews, most of them sampling and refining
 /// the polynomials. `None` where this does not apply (other guards, or a crossing too far
 /// for one Taylor window): the sampled search decides.
@@ -501,15 +507,18 @@ fn locate_closed_form(
     let Some((tau, g)) = first else {
         return Some(None);
     };
+    // Nudged as in a window of PREDICTION_MARGIN times the crossing's time, the polynomial
+    // only taken a sixteenth past it: the nudges are 1e-14 of that, and it needs a term less.
     let w = (PREDICTION_MARGIN * tau).clamp(f64::EPSILON * h, h);
-    if sys.radius * w > CLOSED_FORM_WINDOW {
+    let end = (tau + tau / 16.0).clamp(f64::EPSILON * h, h);
+    if sys.radius * end > CLOSED_FORM_WINDOW {
         return None;
     }
-    let n = taylor_terms(sys.radius * w);
+    let n = taylor_terms(sys.radius * end);
     for k in 3..n {
         terms[k] = rate_of_derivative(&sys.a, &terms[k - 1]) * RECIPROCALS[k];
     }
-    let (tau, at) = past_crossing(sys, g, &terms[..n.max(3)], tau, w);
+    let (tau, at) = past_crossing(sys, g, &terms[..n.max(3)], tau, (w, end));
     Some(Some((tau, g, at)))
 }
 

@@ -98,6 +98,9 @@ pub(crate) fn stop_guards(
 /// limit; then the stops consistent with `z` (`free_a`: the system without stops) hold their
 /// parts at the limit.
 pub(crate) fn settle_stops(c: &Coefficients, free_a: &Mat, z: &mut Vector) -> Stops {
+    if !has_stops(c) {
+        return Stops::default(); // no travel stops (the default): nothing to settle
+    }
     let reach = c.valve.x_flapper_max * (1.0 - 1e-12);
     if c.valve.x_flapper_max > 0.0
         && (z[XF] >= reach && z[VF] > 0.0 || z[XF] <= -reach && z[VF] < 0.0)
