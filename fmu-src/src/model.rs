@@ -639,7 +639,7 @@ pub fn communication_point_tolerance(time: f64, step: f64) -> f64 {
     4.0 * ulp + 1e-6 * step
 }
 
-const MAGIC: &[u8; 8] = b"EHSVST01";
+const MAGIC: &[u8; 8] = b"EHSVST02";
 
 fn checksum(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))

@@ -75,7 +75,7 @@ def child_corrupt(version, state_file, out_file):
     good = Path(state_file).read_bytes()
     bad = [good[:i] + bytes([good[i] ^ 0xFF]) + good[i + 1 :] for i in range(len(good))]
     bad += [good[:n] for n in range(1, len(good))]  # (fmpy cannot pass 0 bytes)
-    bad += [good + b"\0", b"EHSVST02" + good[8:], bytes(range(256)) * 3]
+    bad += [good + b"\0", b"EHSVFS02" + good[8:], bytes(range(256)) * 3]
     inst = ehsv.Ehsv(version)
     inst.initialize()
     _get, set_, free, _serialize, deserialize = state_calls(inst)

@@ -89,6 +89,39 @@ fn restored_state_and_memory_repeat_the_run_bit_for_bit() {
     assert_eq!(s, before);
 }
 
+/// A Rodas3 attempt that fails is not made again on the next 1, 2, 4, ... steps that could
+/// try it (its failures come in runs); one that passes resets the backoff.
+#[test]
+fn failed_rodas3_attempts_back_off() {
+    let p = CylinderParams::default();
+    let x_s = |t: f64| 0.3e-3 * (2.0 * std::f64::consts::PI * 10.0 * t).sin();
+    let mut s = equilibrium(&p, P_RATED, 200.0);
+    let mut work = IntegratorMemory::default();
+    let (mut failures, mut skipped) = (0, 0);
+    for n in 0..5000 {
+        let t = n as f64 * 2e-5;
+        let before = work;
+        let stats =
+            advance(&p, &mut s, 2e-5, P_RATED, 200.0, |tau| x_s(t + tau), &mut work).unwrap();
+        let tried = stats.cheap + stats.cheap_failed;
+        if before.cheap_skip > 0 {
+            assert_eq!(tried, 0, "call {n} tried Rodas3 while backing off");
+            skipped += u32::from(work.cheap_skip < before.cheap_skip);
+        }
+        if stats.cheap_failed > 0 {
+            failures += 1;
+            let expected = (2 * before.cheap_backoff).clamp(1, MAX_CHEAP_BACKOFF);
+            assert_eq!(work.cheap_backoff, expected, "call {n}");
+            // Steps after the failure within the call (a rejection) count down already.
+            let counted_down = work.cheap_skip < expected && stats.rejected > 0;
+            assert!(work.cheap_skip == expected || counted_down, "call {n}");
+        } else if stats.cheap > 0 {
+            assert_eq!(work.cheap_backoff, 0, "call {n}: a pass resets the backoff");
+        }
+    }
+    assert!(failures > 10 && skipped > 10, "{failures} failures, {skipped} calls skipped");
+}
+
 /// Every 0.1 ms call at the default tolerance (Rodas3 where it passes, located contact
 /// instants) against a reference at rtol 1e-12, over motion, impact on both stops,
 /// cavitation and a spool through zero: the largest scaled deviation along the trajectory.

@@ -6,7 +6,7 @@ use super::cylinder::{CylinderState, N_STATES};
 use super::driver::MODES;
 use super::hbridge::Digital;
 use super::outer_loop::OuterLoop;
-use super::rosenbrock::IntegratorMemory;
+use super::rosenbrock::{IntegratorMemory, MEMORY_VALUES};
 use super::state::N;
 use super::valve::Stops;
 use super::{DrivenCylinder, Inputs, Params, Physics};
@@ -49,7 +49,7 @@ impl Physics {
         for x in cylinder.iter_mut() {
             *x = r.f64()?;
         }
-        let mut memory = [0.0; 4];
+        let mut memory = [0.0; MEMORY_VALUES];
         for x in memory.iter_mut() {
             *x = r.f64()?;
         }
