@@ -360,9 +360,11 @@ pub(crate) fn may_cross(sys: &ModeSystem, at_start: &GuardsAt, z1: &Vector, h: f
     })
 }
 
-/// First instant in (0, h] where a guard (not in `passed`) turns positive: the time, the
-/// guard and the state there. Searched in windows short enough for a Taylor polynomial
-/// of the exact solution. The first window ends a few times past `predicted`, the earliest
+/// First instant in (0, h] where a guard (not passed) turns positive: the time, the guard
+/// and the state there; `at_start` holds the guards at `z0`. In closed form where every open
+/// guard is a line or a parabola in time ([`locate_closed_form`]: the slews), else searched
+/// in windows short enough for a Taylor polynomial of the exact solution
+/// ([`locate_sampled`]). The first window ends a few times past `predicted`, the earliest
 /// crossing the guards' slopes predict ([`GuardsAt::predicted_crossing`]): a command step's
 /// slewing ends within nanoseconds, and a window that short needs a few Taylor terms, not
 /// two dozen.
