@@ -91,15 +91,21 @@ pub(crate) fn propagate(p: &Mat, z: &Vector) -> Vector {
     out
 }
 
-/// `x.ceil() as usize` (saturating; NaN and negatives give 0) without the call: x86-64's
-/// baseline has no rounding instruction, so `ceil` is a libm call (~40 instructions) where
-/// every piece and sub-step count is taken.
+/// 2^63: from here on `as i64` saturates.
+const TWO_TO_63: f64 = 9_223_372_036_854_775_808.0;
+
+/// `x.ceil() as usize` (NaN and negatives give 0, `usize::MAX` from 2^63 on) without the
+/// call: x86-64's baseline has no rounding instruction, so `ceil` is a libm call (~40
+/// instructions) where every piece and sub-step count is taken. Through `i64`, whose
+/// conversions are one instruction each way (`usize`'s are branchy sequences).
 #[inline]
 pub(crate) fn ceil_count(x: f64) -> usize {
-    let whole = x as usize;
-    if (whole as f64) < x {
-        whole.saturating_add(1)
-    } else {
-        whole
+    if x.is_nan() || x <= 0.0 {
+        return 0;
     }
+    if x >= TWO_TO_63 {
+        return usize::MAX;
+    }
+    let whole = x as i64;
+    (whole + ((whole as f64) < x) as i64) as usize
 }
