@@ -105,7 +105,7 @@ impl Physics {
             let t_loop = self.outer.next_event(&p.loops);
             let t_event = t_bridge.min(t_loop);
             let fire = t_event <= t_end + slack;
-            let segment_end = if fire { t_event.min(t_end) } else { t_end };
+            let segment_end = if fire && t_event < t_end - slack { t_event } else { t_end };
             if segment_end > t {
                 let whole = t == t_start && segment_end == t_end;
                 self.evolve(segment_end - t, whole, &inputs, &mut events)?;

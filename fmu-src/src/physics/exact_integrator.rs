@@ -565,16 +565,29 @@ pub(crate) struct GuardsAt {
     values: PerGuard,
     rates: PerGuard,
     passed: u8,
+    /// The earliest time at which a guard (not in `passed`) reaches zero if it kept its
+    /// present slope; infinite if none is rising towards zero.
+    predicted: f64,
 }
 
 impl GuardsAt {
     pub(crate) fn new(sys: &ModeSystem, z: &Vector, passed: u8) -> GuardsAt {
-        let mut at = GuardsAt { values: [0.0; MAX_GUARDS], rates: [0.0; MAX_GUARDS], passed };
+        let mut at = GuardsAt {
+            values: [0.0; MAX_GUARDS],
+            rates: [0.0; MAX_GUARDS],
+            passed,
+            predicted: f64::INFINITY,
+        };
         for g in (0..sys.n_guards).filter(|g| passed & 1 << g == 0) {
-            at.values[g] = sys.guard_value(g, z);
+            let value = sys.guard_value(g, z);
+            at.values[g] = value;
             // A guard above zero has been passed: its rate matters to no one.
-            if at.values[g] <= 0.0 {
-                at.rates[g] = sys.guard_rate(g, z);
+            if value <= 0.0 {
+                let rate = sys.guard_rate(g, z);
+                at.rates[g] = rate;
+                if rate > 0.0 {
+                    at.predicted = at.predicted.min(-value / rate);
+                }
             }
         }
         at
@@ -582,15 +595,8 @@ impl GuardsAt {
 
     /// The earliest time at which a guard (not in `passed`) reaches zero if it kept its
     /// present slope; infinite if none is rising towards zero.
-    pub(crate) fn predicted_crossing(&self, sys: &ModeSystem) -> f64 {
-        let mut earliest = f64::INFINITY;
-        for g in (0..sys.n_guards).filter(|g| self.passed & 1 << g == 0) {
-            let (value, rate) = (self.values[g], self.rates[g]);
-            if value <= 0.0 && rate > 0.0 {
-                earliest = earliest.min(-value / rate);
-            }
-        }
-        earliest
+    pub(crate) fn predicted_crossing(&self) -> f64 {
+        self.predicted
     }
 }
 
@@ -724,7 +730,7 @@ mod tests {
                 let Some(closed) = locate_closed_form(&sys, &z, h, &at_start) else {
                     continue;
                 };
-                let predicted = at_start.predicted_crossing(&sys);
+                let predicted = at_start.predicted_crossing();
                 let sampled = locate_sampled(&sys, &z, h, 0, predicted);
                 match (closed, sampled) {
                     (Some((t1, g1, z1)), Some((t2, g2, z2))) => {
