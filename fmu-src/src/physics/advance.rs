@@ -97,7 +97,9 @@ impl Physics {
                 "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
             ));
         }
-        // Time events a hair past the step end (rounding of t_start + step) belong to it.
+        // Time events within a hair of the step end (rounding of t_start + step, either
+        // side) belong to it and fire at its end: no segment of a few ulp after them (7 %
+        // of the gait's segments were 1-2e-16 s long, each a full evolution).
         let slack = 1e-9 * step.min(p.hbridge.period()).min(1.0 / p.loops.f_sample);
         let mut t = t_start;
         loop {
@@ -214,8 +216,7 @@ impl Physics {
                 // propagator maps onto itself crosses nothing: no prediction needed.
                 let mut guards = (!(at_fixed_point && propagator.has_matrix()))
                     .then(|| GuardsAt::new(sys, &z, passed));
-                let predicted =
-                    guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing(sys));
+                let predicted = guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing());
                 let next = (predicted >= h).then(|| propagate(&z));
                 let search = match next {
                     None => true,
