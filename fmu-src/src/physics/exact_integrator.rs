@@ -565,8 +565,7 @@ pub(crate) struct GuardsAt {
     values: PerGuard,
     rates: PerGuard,
     passed: u8,
-    /// The earliest time at which a guard (not in `passed`) reaches zero if it kept its
-    /// present slope; infinite if none is rising towards zero.
+    /// See [`GuardsAt::predicted_crossing`]: found in the loop that evaluates the guards.
     predicted: f64,
 }
 
