@@ -393,22 +393,26 @@ const POSITION_AT_REST: f64 = 1e-6;
 
 impl Model {
     /// Which conditions of [`InputWarning::ALL`] hold for the inputs in force (cheap, no
-    /// allocation, one look at the state for all).
+    /// allocation, one look at the state for all). Every step asks: the modes are decoded
+    /// only where a value test holds (few steps).
     pub fn input_warnings(&self) -> [bool; InputWarning::ALL.len()] {
         let v = &self.state.borrow().values;
+        let current_above_rating = v[vr::I_REF].abs() > VALVE_RATED_CURRENT;
+        let no_driver_supply = v[vr::V_SUPPLY] == 0.0;
+        let no_hydraulic_supply = v[vr::P_SUPPLY] == 0.0;
+        if !(current_above_rating || no_driver_supply || no_hydraulic_supply) {
+            return [false; InputWarning::ALL.len()];
+        }
         let mode = control_mode(v);
         let moving = asks_for_motion(mode, v);
+        // The ideal current driver has no supply to miss.
+        let ideal = matches!(DriverKind::from_value(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
         InputWarning::ALL.map(|warning| match warning {
             InputWarning::CurrentAboveRating => {
-                mode == ControlMode::Current && v[vr::I_REF].abs() > VALVE_RATED_CURRENT
+                current_above_rating && mode == ControlMode::Current
             }
-            InputWarning::NoDriverSupply => {
-                // The ideal current driver has no supply to miss.
-                let ideal =
-                    matches!(DriverKind::from_value(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
-                v[vr::V_SUPPLY] == 0.0 && !ideal && moving
-            }
-            InputWarning::NoHydraulicSupply => v[vr::P_SUPPLY] == 0.0 && moving,
+            InputWarning::NoDriverSupply => no_driver_supply && !ideal && moving,
+            InputWarning::NoHydraulicSupply => no_hydraulic_supply && moving,
         })
     }
 
