@@ -173,6 +173,10 @@ impl Physics {
         // stops, whose impacts break the path. (start, duration)
         let merge = !valve::has_stops(&self.params);
         let mut pending: Option<(Vector, f64)> = None;
+        // After a slew from the segment's start, the next mode's start pulled back to it
+        // ([`slew_end`]): its sub-step then ends where the whole segment's propagator takes it.
+        let segment_start = z;
+        let mut pulled_back: Option<Vector> = None;
         'modes: while done < span_total {
             let span = span_total - done;
             let sys = if valve::has_stops(&self.params) {
@@ -192,7 +196,20 @@ impl Physics {
             let first = span / pieces as f64;
             let brief_slew = first * sys.radius <= 1.0
                 && driver::slew_time(&self.params, self.mode, &z).is_some_and(|t| t < first);
-            let propagator = if self.mode == Mode::Switched || brief_slew {
+            // The end of the rest of the segment in one sub-step, if it is pulled back.
+            let mut whole_segment_end = None;
+            if let Some(start) = pulled_back.take().filter(|_| pieces == 1) {
+                let whole = self.cache.get(key, sys, span_total, true, 1)?;
+                if whole.substeps == 1 && whole.has_matrix() {
+                    let mut end = whole.apply(sys, &start);
+                    driver::project_onto(&self.params, &self.digital, &mut end, self.mode);
+                    whole_segment_end = Some(end);
+                }
+            }
+            let propagator = if whole_segment_end.is_some() {
+                // One sub-step, never applied: `whole_segment_end` is its end.
+                Propagator::taylor_only(sys, span, 1)
+            } else if self.mode == Mode::Switched || brief_slew {
                 Propagator::taylor_only(sys, span, pieces)
             } else {
                 self.cache.get(key, sys, span, whole && done == 0.0, pieces)?
@@ -202,6 +219,9 @@ impl Physics {
                 let settled = (key, h.to_bits(), z);
                 let at_fixed_point = self.fixed_point == Some(settled);
                 let propagate = |z: &Vector| {
+                    if let Some(end) = whole_segment_end {
+                        return end;
+                    }
                     let mut next = if propagator.has_matrix() && at_fixed_point {
                         *z
                     } else {
@@ -249,10 +269,22 @@ impl Physics {
                                 inputs,
                             )?;
                         }
+                        let from_segment_start = done == 0.0 && k == 0 && switches == 0;
                         z = at;
                         done += k as f64 * h + tau;
                         let before = self.mode;
                         let changed = self.settle(&mut z);
+                        if from_segment_start && merge {
+                            pulled_back = slew_end::exit(&self.slew_exits, before, self.mode)
+                                .and_then(|exit| {
+                                    let to = &self.systems[self.mode.index()];
+                                    let mut start =
+                                        slew_end::pulled_back(to, exit, &segment_start, tau)?;
+                                    // The new mode's projection at the switch (rounding).
+                                    start[U] += z[U] - at[U];
+                                    Some(start)
+                                });
+                        }
                         driver::count_switch(events, before, self.mode);
                         passed = if changed { 0 } else { passed | 1 << guard };
                         switches += 1;

@@ -49,7 +49,14 @@ pub(crate) struct ModeSystem {
     pub(crate) radius: f64,
     /// Rows of `A` and `A^2` that give the spool's velocity and acceleration from `z`.
     spool_rows: [Vector; 2],
+    /// `(-A)^k e_U / k!` ([`super::slew_end`]); [`ModeSystem::with_stops`] keeps the free
+    /// system's (unused with travel stops).
+    pub(crate) back: [Vector; BACK_TERMS],
 }
+
+/// Terms of [`ModeSystem::back`]: they cover slews up to about 0.07 / |lambda| (1.4 us in
+/// the paper's linear mode; longer ones go the usual way).
+pub(crate) const BACK_TERMS: usize = 10;
 
 /// The rows of `a` and `a^2` for the spool: its velocity and acceleration at any state in
 /// two dot products (the cylinder reads them at both ends of every piece).
@@ -84,6 +91,7 @@ impl ModeSystem {
             n_guards: 0,
             radius,
             spool_rows: spool_rows(&a),
+            back: super::slew_end::back_series(&a),
         };
         for &g in guards {
             sys.push_guard(g);
@@ -317,7 +325,7 @@ const THETA_FINE: f64 = 1.0;
 const TAYLOR_TERMS: usize = 24;
 /// 1/k for the Taylor terms: a multiplication instead of a division (a fifth of the event
 /// search's time went to dividing by k).
-const RECIPROCALS: [f64; TAYLOR_TERMS] = {
+pub(crate) const RECIPROCALS: [f64; TAYLOR_TERMS] = {
     let mut r = [0.0; TAYLOR_TERMS];
     let mut k = 1;
     while k < TAYLOR_TERMS {

@@ -1,0 +1,158 @@
+//! The mode after a slew that a command step started: run from the segment's start.
+//!
+//! A new current command starts a slew at the segment's start that ends within a
+//! microsecond; the mode after it (usually the linear one) then runs to the segment's end,
+//! `z(S) = exp(A (S - tau)) z(tau)`. That span never repeats, so its propagator is a cached
+//! one of its leading bits and a Taylor series of 7-9 products for the rest: a tenth of
+//! the gait's work. The same end is `exp(A S) (z0 + c)`: the propagator of the whole
+//! segment (a span that repeats, cached exactly) applied to the segment's start moved by a
+//! short series `c` of known vectors.
+//!
+//! Why it holds: the slew's dynamics `A_s` differ from the next mode's `A` only in the
+//! driver output's row, `A_s = A + e_U d`. Variation of constants gives
+//! `exp(-A tau) z_s(tau) = z0 + int_0^tau exp(-A s) e_U w(s) ds` with `w(s) = d z_s(s)`. Where
+//! `d A_s^2 = 0` (the PI law's value moves as a parabola while slewing: the paper's tuning,
+//! where the PI zero cancels the coil's pole), `w(s) = w0 + w1 s` exactly, with `w0 = d z0`
+//! and `w1 = (d A_s) z0`, and
+//! `c = sum_k (-A)^k e_U / k! int_0^tau s^k (w0 + w1 s) ds`.
+
+use super::driver::{Mode, MODES};
+use super::exact_integrator::{ModeSystem, BACK_TERMS, RECIPROCALS};
+use super::state::{dot, Mat, Vector, EVOLVING, U};
+
+/// For each slew (up, down) and each mode after it: `[d, d A_s]` where the two modes
+/// differ only in the output row and `w` is linear in time, else `None`.
+pub(crate) type SlewExits = [[Option<[Vector; 2]>; MODES.len()]; 2];
+
+const SLEWS: [Mode; 2] = [Mode::SlewUp, Mode::SlewDown];
+
+/// The exits of both slews among `systems` (one per mode, in [`MODES`] order).
+pub(crate) fn slew_exits(systems: &[ModeSystem; MODES.len()]) -> SlewExits {
+    SLEWS.map(|slew| {
+        let a_s = &systems[slew.index()].a;
+        MODES.map(|to| {
+            let mut difference: Mat = a_s - systems[to.index()].a;
+            let d = difference.row(U).transpose();
+            difference.row_mut(U).fill(0.0);
+            let d_rate = a_s.transpose() * d;
+            let linear = (a_s.transpose() * d_rate).iter().all(|&x| x == 0.0);
+            (to != slew && difference.iter().all(|&x| x == 0.0) && linear).then_some([d, d_rate])
+        })
+    })
+}
+
+/// `[d, d A_s]` for a slew `from` that ended in mode `to`, if the pair qualifies.
+pub(crate) fn exit(exits: &SlewExits, from: Mode, to: Mode) -> Option<&[Vector; 2]> {
+    let slew = SLEWS.iter().position(|&s| s == from)?;
+    exits[slew][to.index()].as_ref()
+}
+
+/// `(-A)^k e_U / k!` for `k < BACK_TERMS`: the series of [`pulled_back`], per mode.
+pub(crate) fn back_series(a: &Mat) -> [Vector; BACK_TERMS] {
+    let mut series = [Vector::zeros(); BACK_TERMS];
+    series[0][U] = 1.0;
+    for k in 1..BACK_TERMS {
+        series[k] = -(a * series[k - 1]) * RECIPROCALS[k];
+    }
+    series
+}
+
+/// `exp(-A tau) z_s(tau)`, `A` that of `sys`, for a slew from `z0` that lasted `tau` and left
+/// through `exit` (see the module): `z0 + c`, summed until `(|lambda| tau)^k / k!` is below
+/// 1e-18 as in every Taylor series here. `None` where that needs more than [`BACK_TERMS`].
+pub(crate) fn pulled_back(
+    sys: &ModeSystem,
+    [d, d_rate]: &[Vector; 2],
+    z0: &Vector,
+    tau: f64,
+) -> Option<Vector> {
+    let (w0, w1) = (dot(d, z0), dot(d_rate, z0));
+    let mut start = *z0;
+    let scale = sys.radius * tau;
+    let mut bound = 1.0;
+    // tau^(k+1); int_0^tau s^k (w0 + w1 s) ds = tau^(k+1) (w0 / (k+1) + w1 tau / (k+2)).
+    let mut power = tau;
+    for (k, column) in sys.back.iter().enumerate() {
+        let moment = power * (w0 * RECIPROCALS[k + 1] + w1 * tau * RECIPROCALS[k + 2]);
+        // The constants' entries of every column are zero.
+        let evolving = &mut start.as_mut_slice()[..EVOLVING];
+        for (s, c) in evolving.iter_mut().zip(&column.as_slice()[..EVOLVING]) {
+            *s += c * moment;
+        }
+        power *= tau;
+        bound *= scale * RECIPROCALS[k + 1];
+        if bound <= 1e-18 {
+            return Some(start);
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::state::IREF;
+    use crate::physics::{mode_system, Coefficients};
+
+    fn systems() -> [ModeSystem; MODES.len()] {
+        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        MODES.map(|m| mode_system(&c, m))
+    }
+
+    #[test]
+    fn slews_end_in_the_modes_that_differ_from_them_in_the_output_row_only() {
+        let exits = slew_exits(&systems());
+        for (from, to) in [
+            (Mode::SlewUp, Mode::Linear),
+            (Mode::SlewDown, Mode::Linear),
+            (Mode::SlewUp, Mode::HighIntegrating),
+            (Mode::SlewDown, Mode::LowIntegrating),
+        ] {
+            assert!(exit(&exits, from, to).is_some(), "{from:?} -> {to:?}");
+        }
+        // The frozen rails stop the integrator too; the linear mode is no slew.
+        for (from, to) in [
+            (Mode::SlewUp, Mode::HighFrozen),
+            (Mode::SlewDown, Mode::LowFrozen),
+            (Mode::SlewUp, Mode::SlewUp),
+            (Mode::Linear, Mode::SlewUp),
+        ] {
+            assert!(exit(&exits, from, to).is_none(), "{from:?} -> {to:?}");
+        }
+    }
+
+    /// The pulled-back start against matrix exponentials: `exp(-A tau) exp(A_s tau) z0`,
+    /// and the segment's end from it against `exp(A (S - tau)) exp(A_s tau) z0`.
+    #[test]
+    fn the_pulled_back_start_is_where_the_slews_end_goes_back_to() {
+        let systems = systems();
+        let exits = slew_exits(&systems);
+        let segment = 5e-5;
+        for (from, to, i_ref) in [
+            (Mode::SlewUp, Mode::Linear, 2e-3),
+            (Mode::SlewDown, Mode::Linear, -2e-3),
+            (Mode::SlewUp, Mode::HighIntegrating, 2e-3),
+        ] {
+            let (slew, after) = (&systems[from.index()], &systems[to.index()]);
+            let mut z0 =
+                Vector::from_fn(|k, _| [1e-4, 0.3, 0.3, 1e-6, 0.0, 2e-5, 0.0, 72.0, 1.0][k]);
+            z0[IREF] = i_ref;
+            for tau in [1e-9, 3e-8, 1e-7] {
+                let at_end = (slew.a * tau).exp() * z0;
+                let reference = (after.a * -tau).exp() * at_end;
+                let exit = exit(&exits, from, to).unwrap();
+                let start = pulled_back(after, exit, &z0, tau).unwrap();
+                let scale = z0.amax();
+                assert!(
+                    (start - reference).amax() <= 1e-13 * scale,
+                    "{from:?} -> {to:?}, {tau:e} s: {start:?} vs {reference:?}"
+                );
+                // The slew moved the output: the start is not the segment's.
+                assert!((start - z0).amax() > 1e-6 * scale, "{from:?} -> {to:?}, {tau:e} s");
+                let end = (after.a * segment).exp() * start;
+                let direct = (after.a * (segment - tau)).exp() * at_end;
+                assert!((end - direct).amax() <= 1e-12 * direct.amax(), "{from:?} -> {to:?}");
+            }
+        }
+    }
+}
