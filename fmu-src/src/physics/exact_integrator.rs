@@ -295,12 +295,17 @@ fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
     z
 }
 
+/// Every Taylor series here is summed until the bound `(|lambda| t)^n / n!` of its first
+/// neglected term is below this: rounding, with room for the bound's use of the spectral
+/// radius.
+pub(crate) const NEGLECTED_TERM: f64 = 1e-18;
+
 /// Terms of the Taylor series of exp(A t) with |lambda| t = `scale` <= 1 that reach
-/// rounding: the first neglected one, `scale^n / n!`, is below 1e-18. At least 2.
+/// rounding: the first neglected one, `scale^n / n!`, is below [`NEGLECTED_TERM`]. At least 2.
 fn taylor_terms(scale: f64) -> usize {
     let mut terms = 1;
     let mut bound = 1.0;
-    while terms < TAYLOR_TERMS && bound > 1e-18 {
+    while terms < TAYLOR_TERMS && bound > NEGLECTED_TERM {
         bound *= scale * RECIPROCALS[terms];
         terms += 1;
     }

@@ -17,7 +17,7 @@
 //! `c = sum_k (-A)^k e_U / k! int_0^tau s^k (w0 + w1 s) ds`.
 
 use super::driver::{Mode, MODES};
-use super::exact_integrator::{ModeSystem, BACK_TERMS, RECIPROCALS};
+use super::exact_integrator::{ModeSystem, BACK_TERMS, NEGLECTED_TERM, RECIPROCALS};
 use super::state::{dot, Mat, Vector, EVOLVING, U};
 
 /// For each slew (up, down) and each mode after it: `[d, d A_s]` where the two modes
@@ -59,7 +59,7 @@ pub(crate) fn back_series(a: &Mat) -> [Vector; BACK_TERMS] {
 
 /// `exp(-A tau) z_s(tau)`, `A` that of `sys`, for a slew from `z0` that lasted `tau` and left
 /// through `exit` (see the module): `z0 + c`, summed until `(|lambda| tau)^k / k!` is below
-/// 1e-18 as in every Taylor series here. `None` where that needs more than [`BACK_TERMS`].
+/// [`NEGLECTED_TERM`] as in every Taylor series here. `None` where that needs more than [`BACK_TERMS`].
 pub(crate) fn pulled_back(
     sys: &ModeSystem,
     [d, d_rate]: &[Vector; 2],
@@ -81,7 +81,7 @@ pub(crate) fn pulled_back(
         }
         power *= tau;
         bound *= scale * RECIPROCALS[k + 1];
-        if bound <= 1e-18 {
+        if bound <= NEGLECTED_TERM {
             return Some(start);
         }
     }
