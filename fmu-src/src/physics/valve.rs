@@ -264,21 +264,23 @@ impl SpoolPath {
     }
 
     /// Where the spool passes null inside `(0, h)`, if its ends lie on opposite sides:
-    /// safeguarded Newton on the path, to rounding.
+    /// safeguarded Newton on the path, to rounding. The time returned is the first one
+    /// found on the far side's port law ([`port_flows`] reads `x_s = 0` as opening P -> A),
+    /// so the piece that starts there is linearised on the branch it runs on: the flows
+    /// are continuous at null but their slope in `x_s` is not.
     pub(crate) fn null_crossing(&self) -> Option<f64> {
         let (x0, x1) = (self.coef[0], self.end);
         if x0 * x1 >= 0.0 {
             return None;
         }
         let rising = x1 > 0.0;
-        let (lo, hi) = newton_in_bracket(
+        let (_, t) = newton_in_bracket(
             |t| (self.position(t), self.rate(t)),
-            |x| (x > 0.0) == rising,
+            |x| if rising { x >= 0.0 } else { x < 0.0 },
             (0.0, self.h),
             self.h * x0 / (x0 - x1),
             4.0 * f64::EPSILON,
         );
-        let t = 0.5 * (lo + hi);
         (t > 1e-9 * self.h && t < (1.0 - 1e-9) * self.h).then_some(t)
     }
 }
@@ -351,6 +353,11 @@ mod tests {
         assert!(root > 0.0 && root < h);
         let found = path.null_crossing().expect("the ends lie on opposite sides");
         assert!((found - root).abs() < 1e-12 * h, "{found} vs {root}");
+        // The piece after the split starts on the far side's law: P -> A rising (x_s >= 0),
+        // P -> B falling (x_s < 0).
+        assert!(path.position(found) >= 0.0);
+        let falling = SpoolPath::new(h, x(0.0).map(|v| -v), x(h).map(|v| -v));
+        assert!(falling.position(falling.null_crossing().expect("crosses")) < 0.0);
         // Ends on the same side (or one end at null): nothing to split.
         assert_eq!(SpoolPath::new(h, x(0.0), x(0.5 * root)).null_crossing(), None);
         assert_eq!(SpoolPath::new(h, [0.0, b, 0.0], x(h)).null_crossing(), None);
