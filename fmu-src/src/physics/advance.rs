@@ -100,7 +100,8 @@ impl Physics {
         // Time events within a hair of the step end (rounding of t_start + step, either
         // side) belong to it and fire at its end: no segment of a few ulp after them (7 %
         // of the gait's segments were 1-2e-16 s long, each a full evolution).
-        let slack = 1e-9 * step.min(p.hbridge.period()).min(1.0 / p.loops.f_sample);
+        let period = 1.0 / p.loops.f_sample;
+        let slack = 1e-9 * step.min(p.hbridge.period()).min(period);
         let mut t = t_start;
         loop {
             let t_bridge = self.digital.next_event(&p.hbridge);
@@ -110,7 +111,8 @@ impl Physics {
             let segment_end = if fire && t_event < t_end - slack { t_event } else { t_end };
             if segment_end > t {
                 let whole = t == t_start && segment_end == t_end;
-                self.evolve(segment_end - t, whole, &inputs, &mut events)?;
+                let span = nominal_span(segment_end - t, [step, period], slack);
+                self.evolve(span, whole, &inputs, &mut events)?;
                 t = segment_end;
             }
             if !fire {
@@ -322,4 +324,13 @@ impl Physics {
         self.z = z;
         Ok(())
     }
+}
+
+/// The span a segment is propagated over: the communication step or the outer loop's period
+/// where it is one of those up to `slack` (the rounding of the instants that bound it), else
+/// its own. Segments of the same nominal length then share their propagators bit for bit:
+/// the rounding of `k / f_sample` and of `t + step` made the gait's sample periods differ in
+/// their last bits, each difference a matrix exponential of its own.
+fn nominal_span(span: f64, nominal: [f64; 2], slack: f64) -> f64 {
+    nominal.into_iter().find(|n| (span - n).abs() <= slack).unwrap_or(span)
 }

@@ -429,6 +429,32 @@ mod tests {
         assert!(physics.z[I] > 0.5e-4, "the current follows: {} A", physics.z[I]);
     }
 
+    /// The sampling instants `k / f_sample` are rounded, so the sample periods between them
+    /// differ in their last bits, more once `t` passes 0.5 s (its rounding doubles). Each
+    /// period is propagated as the nominal one: a position loop that follows a moving
+    /// reference across 0.5 s builds no propagator after its first steps.
+    #[test]
+    fn sample_periods_share_their_propagator_across_the_clock() {
+        let mut p = crate::model::start_params();
+        p.control_mode = ControlMode::Position;
+        let inputs = |t: f64| Inputs {
+            x_ref: 5e-3 * (2.0 * std::f64::consts::PI * 2.0 * t).sin(),
+            ..crate::model::start_inputs()
+        };
+        let (t0, h) = (0.45, 1e-4);
+        let mut physics = Physics::start(&p, &inputs(t0), t0).unwrap();
+        let mut after_warm_up = 0;
+        for k in 0..1000 {
+            let t = t0 + k as f64 * h;
+            if k == 20 {
+                after_warm_up = physics.work().exponentials;
+            }
+            physics.step(&inputs(t), t, h).unwrap();
+        }
+        assert!(physics.cylinder.state.v.abs() > 1e-3, "the piston moves");
+        assert_eq!(physics.work().exponentials, after_warm_up, "exponentials after the warm-up");
+    }
+
     /// Piece and sub-step counts round up as `ceil` does, saturating at both ends.
     #[test]
     fn counts_round_up_like_ceil() {
