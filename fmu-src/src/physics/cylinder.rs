@@ -408,6 +408,32 @@ pub(crate) fn next_contact_switch(
     Some(hi)
 }
 
+/// Time from `y` to the first point within `(0, span]` where a chamber in the cavitation band
+/// turns from filling to emptying or back: its bulk-modulus factor changes there from 1 to
+/// `u(2-u) < 1` (or back), a kink in `p'`. Predicted from the first-order Taylor polynomial of
+/// `p'`, which has the net inflow's sign while the factor is positive.
+#[inline(never)]
+pub(crate) fn next_cavitation_switch(
+    params: &CylinderParams,
+    y: &Vec4,
+    (f0, jac, f_t): (&Vec4, &Mat4, &Vec4),
+    span: f64,
+) -> Option<f64> {
+    let band_top = params.p_cavitation + params.dp_cavitation_band;
+    let mut first: Option<f64> = None;
+    for k in [PA, PB] {
+        if y[k] >= band_top {
+            continue;
+        }
+        let rate = (0..N_STATES).map(|j| jac[k][j] * f0[j]).sum::<f64>() + f_t[k];
+        let t = -f0[k] / rate;
+        if t > 0.0 && t <= span {
+            first = Some(first.map_or(t, |f| f.min(t)));
+        }
+    }
+    first
+}
+
 #[cfg(test)]
 #[path = "cylinder_tests.rs"]
 mod tests;

@@ -19,11 +19,14 @@
 //! the same tolerance; after a failure it sits out a few such steps (its failures come in
 //! runs, [`MAX_CHEAP_BACKOFF`]). Steps are cut to land on the end-stop contact switches (x reaching
 //! `+-S/2`, the contact force crossing zero), predicted from the Taylor polynomial that the
-//! linearisation gives, instead of rejecting their way across the jump in `v'`.
+//! linearisation gives, instead of rejecting their way across the jump in `v'`; and on a
+//! cavitation kink (a chamber in the band turning from filling to emptying) once an attempt
+//! across it failed.
 //! Everything lives on the stack: no allocation in [`advance_with_rate`].
 
 use super::cylinder::{
-    derivatives, next_contact_switch, CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB,
+    derivatives, next_cavitation_switch, next_contact_switch, CylinderParams, CylinderState, Mat4,
+    Vec4, N_STATES, PA, PB,
 };
 use super::cylinder_jacobian::linearise;
 use super::lu4::Lu4;
@@ -254,6 +257,8 @@ pub(crate) fn advance_with_rate(
     // Consecutive steps cut to a contact switch; bounded so a switch the state cannot be
     // moved across (rounding) falls back to plain error control.
     let mut landings = 0;
+    // Where the watch for a cavitation kink that a rejected attempt held ends (0: none).
+    let mut cavitation_watch_end = 0.0;
     loop {
         if stats.accepted + stats.rejected >= MAX_STEPS_PER_CALL {
             return Err(format!(
@@ -270,12 +275,22 @@ pub(crate) fn advance_with_rate(
             Some(ref l) => l,
             None => lin.insert(model.linearise(tau, &y, &mut stats)),
         };
-        // Step onto the next end-stop contact switch instead of across it.
+        // Step onto the next end-stop contact switch (or a watched cavitation kink) instead of
+        // across it.
         let mut landing = false;
         if landings < MAX_LANDINGS {
-            if let Some(t_switch) =
-                next_contact_switch(params, &y, (&here.f0, &here.jac, &here.f_t), step)
-            {
+            let linear = (&here.f0, &here.jac, &here.f_t);
+            let mut switch = next_contact_switch(params, &y, linear, step);
+            // Most kinks of the cavitation fade are crossed at no cost. One inside a rejected
+            // attempt is watched until that attempt's end, and landed on once a step reaches it.
+            let rejected = rejection.map_or(0.0, |(rejected, _)| rejected);
+            if rejected > 0.0 || cavitation_watch_end > tau {
+                let horizon = rejected.max(cavitation_watch_end - tau);
+                let kink = next_cavitation_switch(params, &y, linear, horizon);
+                cavitation_watch_end = kink.map_or(0.0, |_| tau + horizon);
+                switch = switch.into_iter().chain(kink).reduce(f64::min);
+            }
+            if let Some(t_switch) = switch {
                 let t_land = if t_switch <= 1e-3 * wanted {
                     // Close: the Taylor prediction is exact to far below this margin.
                     t_switch * (1.0 + 1e-6)

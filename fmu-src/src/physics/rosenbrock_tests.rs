@@ -198,6 +198,37 @@ fn contact_instants_are_stepped_onto() {
     assert!(most <= 30, "{most} steps in an entry call");
 }
 
+/// A chamber in the cavitation band that turns from filling to emptying: the bulk-modulus
+/// factor drops from 1 to `u(2-u)` there, a kink in `p'`. The state is the gait's at a
+/// velocity reversal (t = 0.138 s of the benchmark: chamber B at -0.6 bar, the spool closing
+/// towards null, the touchdown load on). The attempt that first holds the kink fails; the
+/// step after it lands on the kink: 1 rejection, where error control alone shrank the step
+/// twice (errors 1.86, 1.86: a kink, not the step size, sets them).
+#[test]
+fn a_cavitation_kink_that_failed_a_step_is_stepped_onto() {
+    let p = CylinderParams::default();
+    let start = CylinderState { p_a: 7.23636e6, p_b: -6.08529e4, x: 1.269312e-2, v: -6.8789e-5 };
+    let f_ext = -1500.0 * (std::f64::consts::PI * 0.138 / 0.25).sin();
+    let (h, x_s) = (4.3332e-5, |tau: f64| 1.285e-7 - 2.96e-3 * tau);
+    let run = |rtol: f64| {
+        let mut s = start;
+        let mut work = IntegratorMemory::new(rtol);
+        work.h_next = 1e-4;
+        let stats = advance(&p, &mut s, h, P_RATED, f_ext, x_s, &mut work).unwrap();
+        (s, stats)
+    };
+    let (reference, _) = run(1e-12);
+    let (s, stats) = run(IntegratorMemory::default().rtol);
+    println!(
+        "{} accepted, {} rejected, {} landings",
+        stats.accepted, stats.rejected, stats.landings
+    );
+    assert!(stats.landings >= 1 && stats.rejected <= 1, "{stats:?}");
+    let e =
+        [(s.p_a - reference.p_a) / 1e6, (s.p_b - reference.p_b) / 1e6, (s.v - reference.v) / 1e-1];
+    assert!(e.iter().all(|e| e.abs() < 1e-7), "{e:?}");
+}
+
 #[test]
 fn cost_per_interval() {
     let p = CylinderParams::default();
