@@ -457,6 +457,7 @@ fn bad_parameters_are_refused_before_initialisation<F: Api>() {
 fn fmi2_null_pointers_name_the_argument() {
     let f = Fmu2::initialized("null2");
     let (r, mut v, mut i, mut size) = (vr::I_REF as u32, 0.0, 0, 0usize);
+    let mut misaligned = [0u64; 2];
     unsafe {
         let cases: Vec<(&str, Status, &[&str])> = vec![
             (
@@ -490,6 +491,16 @@ fn fmi2_null_pointers_name_the_argument() {
                 &["categories is NULL"],
             ),
             ("GetIntegerStatus", fmi2GetIntegerStatus(f.c, 0, null_mut()), &["value is NULL"]),
+            (
+                "GetReal misaligned values",
+                fmi2GetReal(f.c, &r, 1, misaligned.as_mut_ptr().cast::<u8>().add(1).cast()),
+                &["fmi2GetReal", "values is not aligned"],
+            ),
+            (
+                "SetReal impossible size",
+                fmi2SetReal(f.c, &r, usize::MAX / 2, &v),
+                &["fmi2SetReal", "valueReferences", "not a possible array size"],
+            ),
         ];
         for (what, status, needles) in cases {
             assert_eq!(status, ERROR, "{what}");

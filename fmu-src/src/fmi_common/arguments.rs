@@ -57,17 +57,28 @@ impl Instance {
         Ok(unsafe { std::slice::from_raw_parts_mut(ptr, n) })
     }
 
+    /// Inlined into every getter and setter: the tests alone; the messages are [`refuse_array`].
+    #[inline]
     fn check_array<T>(&self, what: &str, ptr: *const T, n: usize) -> Result<(), Status> {
-        if ptr.is_null() {
-            return self.error(&format!("{what} is NULL but {n} elements were announced"));
-        }
-        if !ptr.is_aligned() {
-            return self.error(&format!("{what} is not aligned for its element type"));
-        }
-        if n.checked_mul(std::mem::size_of::<T>()).is_none_or(|b| b > isize::MAX as usize) {
-            return self.error(&format!("{what}: {n} elements is not a possible array size"));
+        let size_ok =
+            n.checked_mul(std::mem::size_of::<T>()).is_some_and(|b| b <= isize::MAX as usize);
+        if ptr.is_null() || !ptr.is_aligned() || !size_ok {
+            return self.refuse_array(what, ptr.is_null(), size_ok, n);
         }
         Ok(())
+    }
+
+    /// Error for an array argument [`Instance::check_array`] refused.
+    #[cold]
+    #[inline(never)]
+    fn refuse_array(&self, what: &str, null: bool, size_ok: bool, n: usize) -> Result<(), Status> {
+        self.error(&if null {
+            format!("{what} is NULL but {n} elements were announced")
+        } else if !size_ok {
+            format!("{what}: {n} elements is not a possible array size")
+        } else {
+            format!("{what} is not aligned for its element type")
+        })
     }
 
     /// Out-parameter pointer check.
