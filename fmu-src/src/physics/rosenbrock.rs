@@ -280,24 +280,27 @@ pub(crate) fn advance_with_rate(
         let mut landing = false;
         if landings < MAX_LANDINGS {
             let linear = (&here.f0, &here.jac, &here.f_t);
-            let mut switch = next_contact_switch(params, &y, linear, step);
-            // Most kinks of the cavitation fade are crossed at no cost. One inside a rejected
-            // attempt is watched until that attempt's end, and landed on once a step reaches it.
-            let rejected = rejection.map_or(0.0, |(rejected, _)| rejected);
-            if rejected > 0.0 || cavitation_watch_end > tau {
-                let horizon = rejected.max(cavitation_watch_end - tau);
-                let kink = next_cavitation_switch(params, &y, linear, horizon);
-                cavitation_watch_end = kink.map_or(0.0, |_| tau + horizon);
-                switch = switch.into_iter().chain(kink).reduce(f64::min);
-            }
-            if let Some(t_switch) = switch {
-                let t_land = if t_switch <= 1e-3 * wanted {
+            let contact = next_contact_switch(params, &y, linear, step).map(|t_switch| {
+                if t_switch <= 1e-3 * wanted {
                     // Close: the Taylor prediction is exact to far below this margin.
                     t_switch * (1.0 + 1e-6)
                 } else {
                     // Far: land just short; the next step, from very close, lands on it.
                     t_switch * (1.0 - 1e-4)
-                };
+                }
+            });
+            // Most kinks of the cavitation fade are crossed at no cost. One inside a rejected
+            // attempt is watched until that attempt's end, and a step that reaches it ends
+            // just past it: a kink (not a jump) a hair before a step's end costs nothing.
+            let rejected = rejection.map_or(0.0, |(rejected, _)| rejected);
+            let mut kink = None;
+            if rejected > 0.0 || cavitation_watch_end > tau {
+                let horizon = rejected.max(cavitation_watch_end - tau);
+                kink = next_cavitation_switch(params, &y, linear, horizon);
+                cavitation_watch_end = kink.map_or(0.0, |_| tau + horizon);
+            }
+            let kink = kink.map(|t_switch| t_switch * (1.0 + 1e-3));
+            if let Some(t_land) = contact.into_iter().chain(kink).reduce(f64::min) {
                 let t_land = t_land.max(1e-12 * h);
                 if t_land < step {
                     step = t_land;
