@@ -63,21 +63,22 @@ impl Instance {
         let size_ok =
             n.checked_mul(std::mem::size_of::<T>()).is_some_and(|b| b <= isize::MAX as usize);
         if ptr.is_null() || !ptr.is_aligned() || !size_ok {
-            return self.refuse_array(what, ptr.is_null(), size_ok, n);
+            return self.refuse_array(what, ptr.is_null(), ptr.is_aligned(), n);
         }
         Ok(())
     }
 
-    /// Error for an array argument [`Instance::check_array`] refused.
+    /// Error for an array argument [`Instance::check_array`] refused: NULL first, then
+    /// misalignment, then an impossible size.
     #[cold]
     #[inline(never)]
-    fn refuse_array(&self, what: &str, null: bool, size_ok: bool, n: usize) -> Result<(), Status> {
+    fn refuse_array(&self, what: &str, null: bool, aligned: bool, n: usize) -> Result<(), Status> {
         self.error(&if null {
             format!("{what} is NULL but {n} elements were announced")
-        } else if !size_ok {
-            format!("{what}: {n} elements is not a possible array size")
-        } else {
+        } else if !aligned {
             format!("{what} is not aligned for its element type")
+        } else {
+            format!("{what}: {n} elements is not a possible array size")
         })
     }
 
