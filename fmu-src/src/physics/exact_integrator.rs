@@ -16,13 +16,14 @@
 //! digital PI loop, see [`super::hbridge`]); the step is cut at each, so switching instants are
 //! exact and do not depend on the communication step.
 
+use super::augmented_exp::exp_augmented;
 use super::state::{ceil_count, dot, propagate, rate, rate_of_derivative, Mat, Vector, VF, XS};
 use super::valve::{self, Stops};
 use super::Coefficients;
 
 /// Coarse sub-steps keep |lambda|*h below this; guards are checked at their ends.
 const THETA_COARSE: f64 = 6.0;
-/// Largest |A h|_1 handed to exp() (see `PropagatorCache::get`).
+/// Largest |A h|_1 handed to the exponential (see `PropagatorCache::get`).
 const MAX_SCALED_NORM: f64 = 1e25;
 /// Sub-steps per propagation at most (a 1e6 s step stays well under a second).
 const MAX_SUBSTEPS: usize = 1 << 14;
@@ -251,9 +252,9 @@ impl PropagatorCache {
             Some(slot) => slot,
             None => {
                 let scaled = sys.a * key_h;
-                // exp() estimates norms of powers up to (A h)^10 and squares log2 of them
-                // times: past ~1e30 they overflow and the squaring never ends. Physical
-                // cases stay decades below MAX_SCALED_NORM (a 1e20 s step gives ~3e23).
+                // The squarings grow with log2 of the norm, and past ~1e30 the powers'
+                // norms overflow. Physical cases stay decades below MAX_SCALED_NORM (a
+                // 1e20 s step gives ~3e23).
                 let norm = scaled
                     .column_iter()
                     .map(|c| c.iter().map(|x| x.abs()).sum::<f64>())
@@ -263,9 +264,14 @@ impl PropagatorCache {
                         "a sub-step of {h} s with these parameters is beyond exact propagation (|A h| = {norm:e}); step refused"
                     ));
                 }
+                let Some(propagator) = exp_augmented(&scaled) else {
+                    return Err(format!(
+                        "a sub-step of {h} s with these parameters has no exact propagator (|A h| = {norm:e}); step refused"
+                    ));
+                };
                 let slot = self.next;
                 self.keys[slot] = key;
-                self.values[slot] = scaled.exp();
+                self.values[slot] = propagator;
                 self.exponentials += 1;
                 self.next = (slot + 1) % CACHE_SLOTS;
                 slot

@@ -8,6 +8,7 @@
 //! method (`rosenbrock`) along the exact spool path. No FFI, no `unsafe`.
 
 mod advance;
+mod augmented_exp;
 mod coil;
 mod cylinder;
 mod cylinder_jacobian;
