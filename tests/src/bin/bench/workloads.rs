@@ -55,6 +55,10 @@ const GAIT_HARMONIC: f64 = 3e-3;
 /// Touchdown load during stance: half-sine peak (N) (pushing the rod in) and stance time (s).
 const TOUCHDOWN_PEAK: f64 = 1500.0;
 const STANCE: f64 = 0.25;
+/// Standing: the position the leg holds (m) and its share of the body's weight (N, pushing
+/// the rod in), both from t = 0.
+const STAND_POSITION: f64 = 5e-3;
+const STAND_LOAD: f64 = 750.0;
 /// Flow loop square wave: amplitude (m3/s) and frequency (Hz).
 const Q_AMPLITUDE: f64 = 2e-5;
 const Q_FREQUENCY: f64 = 20.0;
@@ -73,6 +77,8 @@ pub enum Signal {
     Gait(f64),
     /// Flow loop on a Q_ref square wave.
     FlowSquare,
+    /// Position loop holding a leg's standing position under its share of the weight.
+    Stand,
 }
 
 #[derive(Clone, Debug)]
@@ -104,6 +110,7 @@ impl Signal {
             Signal::Square(f) => [I_AMPLITUDE * square(f, t), 0.0, 0.0, 0.0],
             Signal::Sine(f) => [I_AMPLITUDE * (2.0 * PI * f * t).sin(), 0.0, 0.0, 0.0],
             Signal::FlowSquare => [0.0, Q_AMPLITUDE * square(Q_FREQUENCY, t), 0.0, 0.0],
+            Signal::Stand => [0.0, 0.0, STAND_POSITION, -STAND_LOAD],
             Signal::Gait(shift) => {
                 let t = t + shift;
                 let w = 2.0 * PI / GAIT_PERIOD;
@@ -167,6 +174,7 @@ pub fn all() -> Vec<Workload> {
         w.push(Workload::single(&format!("sine_{f}Hz"), OPAMP_PI, CURRENT, 72.0, Signal::Sine(f)));
     }
     w.push(Workload::single("gait_position", OPAMP_PI, POSITION, 72.0, Signal::Gait(0.0)));
+    w.push(Workload::single("stand_position", OPAMP_PI, POSITION, 72.0, Signal::Stand));
     w.push(Workload::single("flow_square", OPAMP_PI, FLOW, 72.0, Signal::FlowSquare));
     w.push(Workload::single(
         "hbridge_square_100Hz",
@@ -192,6 +200,8 @@ step_to_rest: opamp_pi 72 V, i_ref 0 -> 5 mA at t = 0 (piston to its end stop, t
 square_*/sine_*: opamp_pi 72 V, current mode, i_ref +-5 mA square / 5 mA sine
 gait_position: opamp_pi 72 V, position loop, x_ref = 15 mm sin(2 pi 2 t) + 3 mm sin(2 pi 4 t + 0.5),
   F_ext = -1.5 kN half-sine during each 0.25 s stance, 0 during the 0.25 s swing
+stand_position: opamp_pi 72 V, position loop, x_ref = 5 mm and F_ext = -750 N from t = 0 (a leg
+  standing: to its position, then holding it under the load)
 flow_square: opamp_pi 72 V, flow loop, Q_ref +-2e-5 m3/s square at 20 Hz
 hbridge_square_100Hz: hbridge_pid 12 V, i_ref +-5 mA square at 100 Hz (PWM edges while moving)
 quadruped_12x_gait: 12 instances on the gait, leg l shifted by l/12 of the period, lock-step";
