@@ -8,6 +8,13 @@ use super::*;
 /// the piece after it are at most this long (s): see `evolve`.
 const MERGE_SPAN: f64 = 1e-6;
 
+/// The rest of a segment after a mode change inside it (at most this |lambda| per sub-step)
+/// goes by Taylor series: about 0.8k instructions, where an exponential costs 13k for a span
+/// that seldom comes again (the first step of a gait: the rail after the first sample's
+/// slew and the linear piece after it, 4.6e-5 and 3.9e-6 s). Larger ones, and whole nominal
+/// spans (they recur), keep their cached propagators.
+const ONE_OFF_TAYLOR: f64 = 0.25;
+
 /// The cylinder sees the spool through a quintic between the exact ends of each sub-step;
 /// a sub-step spans at most this angle of the first stage's natural frequency (at the
 /// default 814 Hz, 1.17e-4 s: a 1e-4 s step is one piece). At 5.1 rad (one 1e-3 s step)
@@ -152,6 +159,25 @@ impl Physics {
         }
     }
 
+    /// Builds the current mode's propagators of whole segments (keyed by their exact span,
+    /// as `evolve` takes them after a slew from a segment's start) over the communication
+    /// step and the outer loop's period.
+    pub(super) fn build_whole_segment_propagators(&mut self, step: f64) {
+        let key = self.mode.index() + MODES.len() * self.stops.code();
+        let sys = if valve::has_stops(&self.params) {
+            &self.active
+        } else {
+            &self.systems[self.mode.index()]
+        };
+        let looping = self.params.loops.mode != ControlMode::Current;
+        for span in
+            [Some(step), looping.then(|| 1.0 / self.params.loops.f_sample)].into_iter().flatten()
+        {
+            // A span the cache cannot take is refused again, with its message, when stepped.
+            let _ = self.cache.get(key, sys, span, true, 1);
+        }
+    }
+
     /// Continuous evolution over `span` seconds with state events (driver mode changes);
     /// `whole`: the span is a whole communication step (no time event cut it).
     fn evolve(
@@ -211,7 +237,10 @@ impl Physics {
             let propagator = if whole_segment_end.is_some() {
                 // One sub-step, never applied: `whole_segment_end` is its end.
                 Propagator::taylor_only(sys, span, 1)
-            } else if self.mode == Mode::Switched || brief_slew {
+            } else if self.mode == Mode::Switched
+                || brief_slew
+                || (done > 0.0 && first * sys.radius <= ONE_OFF_TAYLOR)
+            {
                 Propagator::taylor_only(sys, span, pieces)
             } else {
                 self.cache.get(key, sys, span, whole && done == 0.0, pieces)?

@@ -275,13 +275,15 @@ impl Physics {
     }
 
     /// Builds ahead the propagators that a first step of `step` seconds with these inputs
-    /// needs, so that the first doStep costs what the others do (a hardware-in-the-loop
-    /// run's slowest step was its first). Only the propagator cache changes: a probe takes
+    /// needs, and the whole segments' that the steps after a command change use, so that the
+    /// first doSteps cost what the others do (a hardware-in-the-loop run's slowest step was
+    /// its first; the gait's second built the loop period's). Only the propagator cache changes: a probe takes
     /// the step and hands its cache back; a probe that fails leaves nothing.
     pub(crate) fn prepare_first_step(&mut self, inputs: &Inputs, t_start: f64, step: f64) {
         // On the heap: two instances' worth of stack is more than some importers' threads have.
         let mut probe = Box::new(self.clone());
         if probe.advance(inputs, t_start, step).is_ok() {
+            probe.build_whole_segment_propagators(step);
             self.cache = probe.cache;
         }
     }
@@ -454,6 +456,34 @@ mod tests {
         }
         assert!(physics.cylinder.state.v.abs() > 1e-3, "the piston moves");
         assert_eq!(physics.work().exponentials, after_warm_up, "exponentials after the warm-up");
+    }
+
+    /// A position loop started at rest whose reference then jumps (the gait's first sample:
+    /// 1.44 mm) rides the rail and comes off it inside its first sample period: one-off spans,
+    /// taken by Taylor series. The period's whole-segment propagator, which the slews of the
+    /// samples after it use, was built with the first step's. So neither of the first two
+    /// steps builds an exponential (two and one before).
+    #[test]
+    fn a_position_loop_builds_no_exponential_in_its_first_steps() {
+        let mut p = crate::model::start_params();
+        p.control_mode = ControlMode::Position;
+        let at_rest = crate::model::start_inputs();
+        let mut physics = Physics::start(&p, &at_rest, 0.0).unwrap();
+        physics.prepare_first_step(&at_rest, 0.0, 1e-4);
+        let prepared = physics.work().exponentials;
+        let gait = |t: f64| Inputs {
+            x_ref: 15e-3 * (4.0 * std::f64::consts::PI * t).sin()
+                + 3e-3 * (8.0 * std::f64::consts::PI * t + 0.5).sin(),
+            ..at_rest
+        };
+        for k in 0..2 {
+            let t = k as f64 * 1e-4;
+            physics.step(&gait(t), t, 1e-4).unwrap();
+            assert_eq!(physics.work().exponentials, prepared, "exponentials in step {k}");
+        }
+        // The loop drives the coil toward its command, and the spool opens toward x_ref > 0.
+        assert!(physics.z[I] > 1e-3, "i_coil {} A", physics.z[I]);
+        assert!(physics.z[state::XS] > 0.5e-6, "x_spool {} m", physics.z[state::XS]);
     }
 
     /// Piece and sub-step counts round up as `ceil` does, saturating at both ends.
