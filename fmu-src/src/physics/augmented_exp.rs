@@ -145,7 +145,18 @@ fn pade_coefficients(m: usize) -> &'static [f64] {
 /// `None` if the evolving block of the approximant's denominator is singular (only for
 /// non-finite or absurdly scaled input).
 pub(crate) fn exp_augmented(a: &Mat) -> Option<Mat> {
-    let a = Augmented::of_dynamics(a);
+    let mut result = exp_of(Augmented::of_dynamics(a))?;
+    // A part held at a travel stop (a zero row) stays exactly where it is: the solve's
+    // pivoting could leave its row of the result within rounding of the unit row, and a
+    // spool 1e-14 off its stop is no longer at it.
+    for r in (0..EVOLVING).filter(|&r| a.row(r).iter().all(|&x| x == 0.0)) {
+        result.row_mut(r).fill(0.0);
+        result[(r, r)] = 1.0;
+    }
+    Some(result)
+}
+
+fn exp_of(a: Augmented) -> Option<Mat> {
     let a2 = a.times(&a);
     let a4 = a2.times(&a2);
     let a6 = a4.times(&a2);
@@ -292,11 +303,15 @@ mod tests {
     use crate::physics::{mode_system, Coefficients, MODES};
 
     /// Every mode, free and at every combination of stops, over the spans the propagator
-    /// cache asks for (|lambda| h up to 6): the general exponential's result to rounding.
-    /// Each Pade degree and the scaling are taken.
+    /// cache asks for (|lambda| h up to 6): the general exponential's result to rounding, and
+    /// exactly the unit row for a part held at its stop. Each Pade degree and the scaling
+    /// are taken.
     #[test]
     fn matches_the_general_exponential_for_every_mode_and_span() {
-        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let mut params = crate::model::start_params();
+        params.valve.x_flapper_max = 30e-6;
+        params.valve.x_spool_max = 0.2e-3;
+        let c = Coefficients::new(&params).unwrap();
         let typical =
             Mat::from_diagonal(&[2e-3, 1.5, 3.0, 1e-6, 1e-3, 2e-5, 5e-3, 72.0, 1.0].into());
         let mut plans = std::collections::BTreeSet::new();
@@ -310,6 +325,13 @@ mod tests {
                     let scaled = sys.a * span;
                     let general = scaled.exp();
                     let ours = exp_augmented(&scaled).unwrap();
+                    for held in (0..N).filter(|&r| scaled.row(r).iter().all(|&x| x == 0.0)) {
+                        assert_eq!(
+                            ours.row(held),
+                            Mat::identity().row(held),
+                            "{mode:?} stops {code}: held row {held}"
+                        );
+                    }
                     // Row by row on a state of typical magnitudes (rows and columns carry
                     // different units), against the size of the terms each row sums, or the
                     // row's typical magnitude where they cancel (a flapper back at null).
