@@ -148,7 +148,7 @@ pub(crate) fn exp_augmented(a: &Mat) -> Option<Mat> {
     let mut result = exp_of(Augmented::of_dynamics(a))?;
     // A part held at a travel stop (a zero row) stays exactly where it is: the solve's
     // pivoting could leave its row of the result within rounding of the unit row, and a
-    // spool 1e-14 off its stop is no longer at it.
+    // spool 2e-18 m off its stop is no longer at it.
     for r in (0..EVOLVING).filter(|&r| a.row(r).iter().all(|&x| x == 0.0)) {
         result.row_mut(r).fill(0.0);
         result[(r, r)] = 1.0;
@@ -156,6 +156,7 @@ pub(crate) fn exp_augmented(a: &Mat) -> Option<Mat> {
     Some(result)
 }
 
+/// `exp(a)` by scaling and squaring a Pade approximant, degree and scaling from [`plan`].
 fn exp_of(a: Augmented) -> Option<Mat> {
     let a2 = a.times(&a);
     let a4 = a2.times(&a2);

@@ -277,8 +277,9 @@ impl Physics {
     /// Builds ahead the propagators that a first step of `step` seconds with these inputs
     /// needs, and the whole segments' that the steps after a command change use, so that the
     /// first doSteps cost what the others do (a hardware-in-the-loop run's slowest step was
-    /// its first; the gait's second built the loop period's). Only the propagator cache changes: a probe takes
-    /// the step and hands its cache back; a probe that fails leaves nothing.
+    /// its first; the gait's second built the loop period's). Only the propagator cache
+    /// changes: a probe takes the step and hands its cache back; a probe that fails leaves
+    /// nothing.
     pub(crate) fn prepare_first_step(&mut self, inputs: &Inputs, t_start: f64, step: f64) {
         // On the heap: two instances' worth of stack is more than some importers' threads have.
         let mut probe = Box::new(self.clone());
