@@ -268,7 +268,10 @@ impl Physics {
                 let mut guards = (!(at_fixed_point && propagator.has_matrix()))
                     .then(|| GuardsAt::new(sys, &z, passed));
                 let predicted = guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing());
-                let next = (predicted >= h).then(|| propagate(&z));
+                let imminent = predicted < h
+                    && (sys.closed_form_search(passed)
+                        || guards.as_ref().is_some_and(|g| g.crossing_imminent(sys, &z, h)));
+                let next = (!imminent).then(|| propagate(&z));
                 let search = match next {
                     None => true,
                     // A stable system that returns to its state bit for bit is at rest: no

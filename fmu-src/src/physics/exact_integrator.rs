@@ -45,6 +45,8 @@ pub(crate) struct ModeSystem {
     /// How many Taylor coefficients of each guard along a trajectory can be nonzero
     /// ([`nonzero_terms`]).
     guard_terms: [usize; MAX_GUARDS],
+    /// Bit g: guard g is no line or parabola in time (more than [`CLOSED_FORM_TERMS`]).
+    beyond_closed_form: u8,
     n_guards: usize,
     /// Spectral radius of `a` (1/s).
     pub(crate) radius: f64,
@@ -89,6 +91,7 @@ impl ModeSystem {
             guards: [Vector::zeros(); MAX_GUARDS],
             guard_rates: [Vector::zeros(); MAX_GUARDS],
             guard_terms: [TAYLOR_TERMS; MAX_GUARDS],
+            beyond_closed_form: 0,
             n_guards: 0,
             radius,
             spool_rows: spool_rows(&a),
@@ -105,7 +108,16 @@ impl ModeSystem {
         self.guards[self.n_guards] = guard;
         self.guard_rates[self.n_guards] = rate;
         self.guard_terms[self.n_guards] = nonzero_terms(&self.a, rate);
+        if self.guard_terms[self.n_guards] > CLOSED_FORM_TERMS {
+            self.beyond_closed_form |= 1 << self.n_guards;
+        }
         self.n_guards += 1;
+    }
+
+    /// Whether every guard not in `passed` is a line or a parabola in time, so that its
+    /// crossing is found in closed form ([`locate_closed_form`]).
+    pub(crate) fn closed_form_search(&self, passed: u8) -> bool {
+        self.beyond_closed_form & !passed == 0
     }
 
     /// Guard `g`'s value at `z`.
@@ -135,6 +147,7 @@ impl ModeSystem {
         sys.spool_rows = spool_rows(&sys.a);
         // The free system's spectral radius bounds the held one's well enough for sub-steps.
         sys.n_guards = 0;
+        sys.beyond_closed_form = 0;
         for k in 0..self.n_guards {
             sys.push_guard(self.guards[k]);
         }
@@ -504,10 +517,10 @@ fn locate_closed_form(
     h: f64,
     at_start: &GuardsAt,
 ) -> Option<Option<(f64, usize, Vector)>> {
-    let open = || (0..sys.n_guards).filter(|g| at_start.passed & 1 << g == 0);
-    if open().any(|g| sys.guard_terms[g] > CLOSED_FORM_TERMS) {
+    if !sys.closed_form_search(at_start.passed) {
         return None;
     }
+    let open = || (0..sys.n_guards).filter(|g| at_start.passed & 1 << g == 0);
     let mut terms = [Vector::zeros(); CLOSED_FORM_WINDOW_TERMS];
     terms[0] = *z0;
     terms[1] = rate(&sys.a, z0);
@@ -615,6 +628,29 @@ impl GuardsAt {
     /// present slope; infinite if none is rising towards zero.
     pub(crate) fn predicted_crossing(&self) -> f64 {
         self.predicted
+    }
+
+    /// Whether a guard whose slope reaches zero within `h` (the predicted crossing is before
+    /// `h`) still does with its curvature at
+    /// `z` (its Taylor parabola up to `h`). A guard rising fast but bending away (the linear
+    /// mode's output nearing its value after a slew, the rail far off) does not: the sub-step
+    /// then goes the usual way (propagated, then [`may_cross`]) instead of a search.
+    /// Out of line: only the sub-steps with a predicted crossing whose guards are not all
+    /// searched in closed form ask (lines and parabolas, the slews': cheaper to search).
+    #[inline(never)]
+    pub(crate) fn crossing_imminent(&self, sys: &ModeSystem, z: &Vector, h: f64) -> bool {
+        let open = || (0..sys.n_guards).filter(|g| self.passed & 1 << g == 0);
+        let acceleration = rate_of_derivative(&sys.a, &rate(&sys.a, z));
+        open().any(|g| {
+            let (value, slope) = (self.values[g], self.rates[g]);
+            if value > 0.0 || slope <= 0.0 || -value / slope >= h {
+                return false;
+            }
+            let half_curvature = 0.5 * sys.guard_value(g, &acceleration);
+            let peak =
+                if half_curvature < 0.0 { (-slope / (2.0 * half_curvature)).min(h) } else { h };
+            value + peak * (slope + peak * half_curvature) > 0.0
+        })
     }
 }
 
