@@ -159,16 +159,17 @@ impl Physics {
         }
     }
 
+    /// The propagator cache's name for the current (mode, stops) pair.
+    fn propagator_key(&self) -> usize {
+        self.mode.index() + MODES.len() * self.stops.code()
+    }
+
     /// Builds the current mode's propagators of whole segments (keyed by their exact span,
     /// as `evolve` takes them after a slew from a segment's start) over the communication
     /// step and the outer loop's period.
     pub(super) fn build_whole_segment_propagators(&mut self, step: f64) {
-        let key = self.mode.index() + MODES.len() * self.stops.code();
-        let sys = if valve::has_stops(&self.params) {
-            &self.active
-        } else {
-            &self.systems[self.mode.index()]
-        };
+        let key = self.propagator_key();
+        let sys = current_system(&self.params, &self.active, &self.systems, self.mode);
         let looping = self.params.loops.mode != ControlMode::Current;
         for span in
             [Some(step), looping.then(|| 1.0 / self.params.loops.f_sample)].into_iter().flatten()
@@ -207,11 +208,7 @@ impl Physics {
         let mut pulled_back: Option<Vector> = None;
         'modes: while done < span_total {
             let span = span_total - done;
-            let sys = if valve::has_stops(&self.params) {
-                &self.active
-            } else {
-                &self.systems[self.mode.index()]
-            };
+            let sys = current_system(&self.params, &self.active, &self.systems, self.mode);
             // Between PWM edges by Taylor series, otherwise with a cached propagator; either
             // way no sub-step longer than a piece of spool path may be. A slew that ends
             // inside the first sub-step (a command step's: within a microsecond) is searched
@@ -219,7 +216,7 @@ impl Physics {
             // miss, an exponential for nothing): Taylor series serve if it lasts after all,
             // on sub-steps they cover in one piece (others, and absurd parameters, go through
             // the propagator's checks).
-            let key = self.mode.index() + MODES.len() * self.stops.code();
+            let key = self.propagator_key();
             let pieces = spool_path_pieces(span, self.params.wn);
             let first = span / pieces as f64;
             let brief_slew = first * sys.radius <= 1.0
@@ -355,6 +352,22 @@ impl Physics {
         }
         self.z = z;
         Ok(())
+    }
+}
+
+/// The system `mode` runs on: its own without travel stops, else the one with the stops
+/// that hold now ([`Physics::settle`] keeps it as `active`). Over the fields, so that the
+/// caller may still borrow the cache and the cylinder.
+fn current_system<'a>(
+    params: &Coefficients,
+    active: &'a ModeSystem,
+    systems: &'a [ModeSystem; MODES.len()],
+    mode: Mode,
+) -> &'a ModeSystem {
+    if valve::has_stops(params) {
+        active
+    } else {
+        &systems[mode.index()]
     }
 }
 

@@ -158,9 +158,7 @@ pub(crate) fn exp_augmented(a: &Mat) -> Option<Mat> {
 
 /// `exp(a)` by scaling and squaring a Pade approximant, degree and scaling from [`plan`].
 fn exp_of(a: Augmented) -> Option<Mat> {
-    let a2 = a.times(&a);
-    let a4 = a2.times(&a2);
-    let a6 = a4.times(&a2);
+    let [a2, a4, a6] = even_powers(&a);
     let identity = Augmented::identity();
     match plan(a4.norm1(), a6.norm1()) {
         (13, squarings) => {
@@ -179,6 +177,14 @@ fn exp_of(a: Augmented) -> Option<Mat> {
             solve_pade(&a, [&identity, &a2, &a4, &a6, &a8], pade_coefficients(degree), 0)
         }
     }
+}
+
+/// `[a^2, a^4, a^6]`: every approximant's, and the norms that choose it.
+fn even_powers(a: &Augmented) -> [Augmented; 3] {
+    let a2 = a.times(a);
+    let a4 = a2.times(&a2);
+    let a6 = a4.times(&a2);
+    [a2, a4, a6]
 }
 
 /// The Pade degree and the number of squarings for a matrix with `||A^4|| = n4` and
@@ -292,14 +298,6 @@ fn solve(mut q: [[f64; EVOLVING]; EVOLVING], mut rhs: Top) -> Option<Top> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// `(||A^4||, ||A^6||)` as [`exp_augmented`] computes them.
-    fn ours_input_powers(a: &Mat) -> (f64, f64) {
-        let a = Augmented::of_dynamics(a);
-        let a2 = a.times(&a);
-        let a4 = a2.times(&a2);
-        (a4.norm1(), a4.times(&a2).norm1())
-    }
     use crate::physics::valve::Stops;
     use crate::physics::{mode_system, Coefficients, MODES};
 
@@ -345,8 +343,8 @@ mod tests {
                             "{mode:?} stops {code} span {span}: row {row} off by {error:e} of {terms:e}"
                         );
                     }
-                    let a = ours_input_powers(&scaled);
-                    let (degree, squarings) = plan(a.0, a.1);
+                    let [_, a4, a6] = even_powers(&Augmented::of_dynamics(&scaled));
+                    let (degree, squarings) = plan(a4.norm1(), a6.norm1());
                     plans.insert((degree, squarings > 0));
                 }
             }

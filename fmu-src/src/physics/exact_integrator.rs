@@ -631,12 +631,12 @@ impl GuardsAt {
     }
 
     /// Whether a guard whose slope reaches zero within `h` (the predicted crossing is before
-    /// `h`) still does with its curvature at
-    /// `z` (its Taylor parabola up to `h`). A guard rising fast but bending away (the linear
-    /// mode's output nearing its value after a slew, the rail far off) does not: the sub-step
-    /// then goes the usual way (propagated, then [`may_cross`]) instead of a search.
-    /// Out of line: only the sub-steps with a predicted crossing whose guards are not all
-    /// searched in closed form ask (lines and parabolas, the slews': cheaper to search).
+    /// `h`) still does with its curvature at `z` (its Taylor parabola up to `h`). A guard
+    /// rising fast but bending away (the linear mode's output nearing its value after a
+    /// slew, the rail far off) does not: the sub-step then goes the usual way (propagated,
+    /// then [`may_cross`]) instead of a search. Out of line: only the sub-steps with a
+    /// predicted crossing whose guards are not all searched in closed form ask (lines and
+    /// parabolas, the slews': cheaper to search).
     #[inline(never)]
     pub(crate) fn crossing_imminent(&self, sys: &ModeSystem, z: &Vector, h: f64) -> bool {
         let open = || (0..sys.n_guards).filter(|g| self.passed & 1 << g == 0);
