@@ -15,7 +15,7 @@
 //! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`.
 //!
 //! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the
-//! step-to-rest current does not end at 5 mA, an output strays more than 1 % of its range
+//! idle instance's outputs move, the step-to-rest current does not end at 5 mA, an output strays more than 1 % of its range
 //! from the reference (where it is also 10x more than the reference from a tighter one), or
 //! the peer (at rtol 1e-10 or tighter) more than 1e-5 of it where the reference is within
 //! 1e-9 of the tighter one.
@@ -218,6 +218,16 @@ fn measure(
                 dev.0,
                 (k + 1) as f64 * h
             ));
+        }
+        // Idle measures the calls alone: an instance whose state moves is doing other work.
+        if w.legs[0] == Signal::Idle {
+            if let Some(k) = best.trace.iter().position(|y| y != &best.trace[0]) {
+                return Err(format!(
+                    "{}: the outputs moved at t = {:.6} s though every input stays 0",
+                    w.name,
+                    (k + 1) as f64 * h
+                ));
+            }
         }
         if w.legs[0] == Signal::StepToRest {
             let i_end = best.trace.last().map_or(f64::NAN, |y| y[0]);

@@ -67,6 +67,8 @@ pub const LEGS: usize = 12;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Signal {
+    /// Every input 0 from the equilibrium at rest: nothing moves, every step changes nothing.
+    Idle,
     /// Current command 0 -> 5 mA at t = 0, then held: the piston runs to its end stop and rests.
     StepToRest,
     /// +-5 mA square wave (starts positive) at this frequency (Hz).
@@ -106,6 +108,7 @@ impl Signal {
     /// `[i_ref, Q_ref, x_ref, F_ext]` held over the step that starts at `t`.
     pub fn inputs(self, t: f64) -> [f64; 4] {
         match self {
+            Signal::Idle => [0.0; 4],
             Signal::StepToRest => [I_AMPLITUDE, 0.0, 0.0, 0.0],
             Signal::Square(f) => [I_AMPLITUDE * square(f, t), 0.0, 0.0, 0.0],
             Signal::Sine(f) => [I_AMPLITUDE * (2.0 * PI * f * t).sin(), 0.0, 0.0, 0.0],
@@ -160,7 +163,10 @@ impl Workload {
 
 /// Every workload of the benchmark, in table order.
 pub fn all() -> Vec<Workload> {
-    let mut w = vec![Workload::single("step_to_rest", OPAMP_PI, CURRENT, 72.0, Signal::StepToRest)];
+    let mut w = vec![
+        Workload::single("idle", OPAMP_PI, CURRENT, 72.0, Signal::Idle),
+        Workload::single("step_to_rest", OPAMP_PI, CURRENT, 72.0, Signal::StepToRest),
+    ];
     for f in [2.0, 20.0, 100.0] {
         w.push(Workload::single(
             &format!("square_{f}Hz"),
@@ -196,6 +202,7 @@ pub fn all() -> Vec<Workload> {
 
 /// A short description of every workload for the report.
 pub const DESCRIPTION: &str = "\
+idle: opamp_pi 72 V, current mode, every input 0 (at rest throughout: the cost of the FMI calls alone)
 step_to_rest: opamp_pi 72 V, i_ref 0 -> 5 mA at t = 0 (piston to its end stop, then at rest)
 square_*/sine_*: opamp_pi 72 V, current mode, i_ref +-5 mA square / 5 mA sine
 gait_position: opamp_pi 72 V, position loop, x_ref = 15 mm sin(2 pi 2 t) + 3 mm sin(2 pi 4 t + 0.5),
