@@ -49,7 +49,7 @@ const FIDELITY_LIMIT: f64 = 1e-5;
 /// below 6e-10 where it is well-conditioned).
 const WELL_CONDITIONED: f64 = 1e-9;
 /// The quadruped runs at this step only unless `--all-h`.
-const QUADRUPED_H: f64 = 1e-4;
+const QUADRUPED_H: f64 = report::TARGET_STEP;
 
 struct Options {
     lib: PathBuf,
@@ -260,6 +260,7 @@ fn measure(
         }
         rows.push(Row {
             workload: w.name.clone(),
+            instances: w.legs.len(),
             h,
             version: fmu.version(),
             rtf_wall: sim_time / best.wall,
@@ -364,6 +365,7 @@ fn main() -> ExitCode {
     let mut failed = false;
     let mut problems = Vec::new();
     let mut slowest = Vec::new();
+    let mut targets = Vec::new();
     for &h in &o.steps {
         for w in workloads::all() {
             let w = Workload { solver_rtol: o.fmu_rtol, ..w };
@@ -377,6 +379,8 @@ fn main() -> ExitCode {
                 Ok(rows) => {
                     rows.iter().for_each(report::print);
                     slowest.extend(rows.iter().filter_map(report::slowest_steps));
+                    targets
+                        .extend(rows.iter().filter_map(|r| report::targets(r, WELL_CONDITIONED)));
                 }
                 Err(e) => {
                     eprintln!("bench: {}, h = {h}: {e}", w.name);
@@ -390,6 +394,11 @@ fn main() -> ExitCode {
     println!();
     println!("{}", report::SLOWEST_HEADER);
     slowest.iter().for_each(|line| println!("{line}"));
+    if !targets.is_empty() {
+        println!();
+        println!("{}", report::targets_header(o.t_end));
+        targets.iter().for_each(|line| println!("{line}"));
+    }
     for p in &problems {
         eprintln!("bench: {p}");
     }

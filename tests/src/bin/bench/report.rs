@@ -10,6 +10,8 @@ use crate::workloads::OUTPUT_NAMES;
 /// One row: a workload at one step size through one FMI version.
 pub struct Row {
     pub workload: String,
+    /// Instances stepped in lock-step (12 for the quadruped).
+    pub instances: usize,
     pub h: f64,
     pub version: Version,
     /// Best real-time factor over the untimed runs: wall, thread CPU.
@@ -236,4 +238,56 @@ pub fn slowest_steps(row: &Row) -> Option<String> {
         text += &format!("\n  {:<28}  after it: {}", "", slow_step(later));
     }
     Some(text)
+}
+
+/// The team's targets at this communication step (s).
+pub const TARGET_STEP: f64 = 1e-4;
+/// Real-time factor per actuator, and of the whole quadruped on one core.
+const TARGET_RTF: f64 = 1000.0;
+const TARGET_QUADRUPED_RTF: f64 = 80.0;
+/// Slowest doStep (s of thread CPU): a 10 kHz hardware-in-the-loop frame with room to spare.
+const TARGET_SLOWEST: f64 = 10e-6;
+/// Peer thread-CPU time over the FMU's, and deviation from the reference as a fraction of range.
+const TARGET_PEER_RATIO: f64 = 10.0;
+const TARGET_DEVIATION: f64 = 1e-5;
+
+/// What the lines of [`targets`] judge, for a run of `t_end` simulated seconds.
+pub fn targets_header(t_end: f64) -> String {
+    format!(
+        "\
+Against the team's targets at h = 1e-4 s, over this run's {t_end} s (FMI 2 rows): RTFcpu >= 1000
+per actuator (the 12-instance quadruped >= 80 in all), slowest doStep < 10 us of thread CPU,
+>= 10x faster than the peer, every output within 1e-5 of its range of the reference (judged
+where the reference is within 1e-9 of a 10x tighter one; elsewhere the workload is
+ill-conditioned). Printed, never asserted: speed depends on the machine."
+    )
+}
+
+/// One line of the targets' verdict for `row`, if it is a row they apply to;
+/// `well_conditioned`: the largest reference spread at which accuracy is judged.
+pub fn targets(row: &Row, well_conditioned: f64) -> Option<String> {
+    if row.h != TARGET_STEP || row.version != Version::Fmi2 {
+        return None;
+    }
+    let verdict = |met: bool| if met { "met" } else { "NOT met" };
+    let rtf_target = if row.instances > 1 { TARGET_QUADRUPED_RTF } else { TARGET_RTF };
+    let rtf =
+        format!("RTF {} ({:.1} of {rtf_target})", verdict(row.rtf_cpu >= rtf_target), row.rtf_cpu);
+    let slowest = format!(
+        "slowest {} ({} us)",
+        verdict(row.step_cpu.max < TARGET_SLOWEST),
+        us(row.step_cpu.max)
+    );
+    let peer = match &row.peer {
+        Some(p) => format!("peer {} ({:.1}x)", verdict(p.ratio >= TARGET_PEER_RATIO), p.ratio),
+        None => "peer -".into(),
+    };
+    let accuracy = match row.deviation {
+        Some(_) if row.reference_spread.0 > well_conditioned => {
+            "accuracy not judged (ill-conditioned)".into()
+        }
+        Some((d, _)) => format!("accuracy {} ({d:.1e})", verdict(d <= TARGET_DEVIATION)),
+        None => "accuracy -".into(),
+    };
+    Some(format!("  {:<22} {rtf}; {slowest}; {peer}; {accuracy}", row.workload))
 }
