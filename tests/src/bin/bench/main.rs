@@ -14,9 +14,10 @@
 //! traded for speed; default its own, 1e-7), `--no-peer`, `--require-peer` (fail if CVODE cannot
 //! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`.
 //!
-//! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the
-//! idle instance's outputs move, the step-to-rest current does not end at 5 mA, an output strays more than 1 % of its range
-//! from the reference (where it is also 10x more than the reference from a tighter one), or
+//! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the idle
+//! instance's outputs move, the step-to-rest current does not end at 5 mA, an output strays
+//! more than 1 % of its range from the reference (where it is also 10x more than the
+//! reference from a tighter one), or
 //! the peer (at rtol 1e-10 or tighter) more than 1e-5 of it where the reference is within
 //! 1e-9 of the tighter one.
 
@@ -379,8 +380,7 @@ fn main() -> ExitCode {
                 Ok(rows) => {
                     rows.iter().for_each(report::print);
                     slowest.extend(rows.iter().filter_map(report::slowest_steps));
-                    targets
-                        .extend(rows.iter().filter_map(|r| report::targets(r, WELL_CONDITIONED)));
+                    targets.extend(rows.iter().filter_map(report::targets));
                 }
                 Err(e) => {
                     eprintln!("bench: {}, h = {h}: {e}", w.name);

@@ -6,6 +6,7 @@ use ehsv_actuator::physics::Work;
 use crate::peer::PeerRun;
 use crate::timing::Summary;
 use crate::workloads::OUTPUT_NAMES;
+use crate::{FIDELITY_LIMIT, WELL_CONDITIONED};
 
 /// One row: a workload at one step size through one FMI version.
 pub struct Row {
@@ -247,25 +248,26 @@ const TARGET_RTF: f64 = 1000.0;
 const TARGET_QUADRUPED_RTF: f64 = 80.0;
 /// Slowest doStep (s of thread CPU): a 10 kHz hardware-in-the-loop frame with room to spare.
 const TARGET_SLOWEST: f64 = 10e-6;
-/// Peer thread-CPU time over the FMU's, and deviation from the reference as a fraction of range.
+/// Peer thread-CPU time over the FMU's. (The accuracy target is the bench's
+/// [`FIDELITY_LIMIT`], judged where the trajectory is [`WELL_CONDITIONED`].)
 const TARGET_PEER_RATIO: f64 = 10.0;
-const TARGET_DEVIATION: f64 = 1e-5;
 
 /// What the lines of [`targets`] judge, for a run of `t_end` simulated seconds.
 pub fn targets_header(t_end: f64) -> String {
     format!(
         "\
-Against the team's targets at h = 1e-4 s, over this run's {t_end} s (FMI 2 rows): RTFcpu >= 1000
-per actuator (the 12-instance quadruped >= 80 in all), slowest doStep < 10 us of thread CPU,
->= 10x faster than the peer, every output within 1e-5 of its range of the reference (judged
-where the reference is within 1e-9 of a 10x tighter one; elsewhere the workload is
-ill-conditioned). Printed, never asserted: speed depends on the machine."
+Against the team's targets at h = {TARGET_STEP:e} s, over this run's {t_end} s (FMI 2 rows):
+RTFcpu >= {TARGET_RTF} per actuator (the 12-instance quadruped >= {TARGET_QUADRUPED_RTF} in all),
+slowest doStep < {} us of thread CPU, >= {TARGET_PEER_RATIO}x faster than the peer, every
+output within {FIDELITY_LIMIT:e} of its range of the reference (judged where the reference is
+within {WELL_CONDITIONED:e} of a 10x tighter one; elsewhere the workload is ill-conditioned).
+Printed, never asserted: speed depends on the machine.",
+        TARGET_SLOWEST * 1e6
     )
 }
 
-/// One line of the targets' verdict for `row`, if it is a row they apply to;
-/// `well_conditioned`: the largest reference spread at which accuracy is judged.
-pub fn targets(row: &Row, well_conditioned: f64) -> Option<String> {
+/// One line of the targets' verdict for `row`, if it is a row they apply to.
+pub fn targets(row: &Row) -> Option<String> {
     if row.h != TARGET_STEP || row.version != Version::Fmi2 {
         return None;
     }
@@ -283,10 +285,10 @@ pub fn targets(row: &Row, well_conditioned: f64) -> Option<String> {
         None => "peer -".into(),
     };
     let accuracy = match row.deviation {
-        Some(_) if row.reference_spread.0 > well_conditioned => {
+        Some(_) if row.reference_spread.0 > WELL_CONDITIONED => {
             "accuracy not judged (ill-conditioned)".into()
         }
-        Some((d, _)) => format!("accuracy {} ({d:.1e})", verdict(d <= TARGET_DEVIATION)),
+        Some((d, _)) => format!("accuracy {} ({d:.1e})", verdict(d <= FIDELITY_LIMIT)),
         None => "accuracy -".into(),
     };
     Some(format!("  {:<22} {rtf}; {slowest}; {peer}; {accuracy}", row.workload))
