@@ -14,6 +14,6 @@ pub mod fmi2;
 pub mod fmi3;
 pub mod fmi_common;
 pub mod model;
-pub mod physics;
+pub use ehsv_physics as physics;
 pub mod units;
 pub mod variables;

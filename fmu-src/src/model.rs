@@ -7,6 +7,7 @@
 
 use std::cell::RefCell;
 
+use crate::physics::bytes::{frame, unframe, Reader};
 use crate::physics::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
     OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams, Work,
@@ -284,7 +285,7 @@ impl Model {
     /// Inverse of [`Model::to_bytes`]; refuses truncated, corrupted or foreign bytes.
     pub fn from_bytes(bytes: &[u8]) -> Result<Model, String> {
         let body = unframe(MAGIC, bytes)?;
-        let mut r = Reader { bytes: body, at: 0 };
+        let mut r = Reader::new(body);
         let n = r.u32()? as usize;
         if n != N_VARIABLES {
             return Err(format!("state has {n} variables, this FMU has {N_VARIABLES}"));
@@ -300,7 +301,7 @@ impl Model {
             check_inputs_fit(&values).map_err(|e| format!("state holds invalid inputs: {e}"))?;
         }
         let physics = Physics::read_bytes(&p, &inputs(&values), &mut r)?;
-        if r.at != body.len() {
+        if !r.is_at_end() {
             return Err("state has trailing bytes".into());
         }
         let state = State { values, physics, stale: false };
@@ -519,11 +520,6 @@ pub(crate) fn start_params() -> Params {
     params(&start_values()).expect("the start values are valid")
 }
 
-/// The inputs at their start values.
-#[cfg(test)]
-pub(crate) fn start_inputs() -> Inputs {
-    inputs(&start_values())
-}
 
 /// The inputs in the value array.
 fn inputs(v: &[f64; N_VARIABLES]) -> Inputs {
@@ -539,7 +535,7 @@ fn inputs(v: &[f64; N_VARIABLES]) -> Inputs {
 
 /// The parameters in the value array, each checked against its range in the table
 /// (single values were checked when set; this checks them as a whole, e.g. restored bytes).
-pub(crate) fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
+pub fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
     let driver = DriverKind::from_value(v[vr::DRIVER])?;
     for (var, &value) in VARIABLES.iter().zip(v.iter()) {
         if var.causality == Causality::Parameter {
@@ -644,65 +640,6 @@ pub fn communication_point_tolerance(time: f64, step: f64) -> f64 {
 }
 
 const MAGIC: &[u8; 8] = b"EHSVST02";
-
-fn checksum(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))
-}
-
-/// magic | body length (u64) | body | FNV-1a 64 of body. The magic names the format
-/// and its version (the model's bytes, the FMI layer's FMU state around them).
-pub(crate) fn frame(magic: &[u8; 8], body: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(body.len() + 24);
-    out.extend_from_slice(magic);
-    out.extend_from_slice(&(body.len() as u64).to_le_bytes());
-    out.extend_from_slice(body);
-    out.extend_from_slice(&checksum(body).to_le_bytes());
-    out
-}
-
-pub(crate) fn unframe<'a>(magic: &[u8; 8], bytes: &'a [u8]) -> Result<&'a [u8], String> {
-    if bytes.len() < 24 || &bytes[..8] != magic {
-        return Err("not an EhsvActuator state (wrong magic or version)".into());
-    }
-    let len = u64::from_le_bytes(bytes[8..16].try_into().unwrap());
-    if len != (bytes.len() - 24) as u64 {
-        return Err(format!("state length {} does not match its header ({len})", bytes.len() - 24));
-    }
-    let body = &bytes[16..bytes.len() - 8];
-    let sum = u64::from_le_bytes(bytes[bytes.len() - 8..].try_into().unwrap());
-    if sum != checksum(body) {
-        return Err("state checksum mismatch (corrupted bytes)".into());
-    }
-    Ok(body)
-}
-
-/// Bounds-checked little-endian reader for state bytes.
-pub(crate) struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-}
-
-impl Reader<'_> {
-    fn take(&mut self, n: usize) -> Result<&[u8], String> {
-        let end = self
-            .at
-            .checked_add(n)
-            .filter(|&e| e <= self.bytes.len())
-            .ok_or("state is truncated")?;
-        let s = &self.bytes[self.at..end];
-        self.at = end;
-        Ok(s)
-    }
-    pub(crate) fn u8(&mut self) -> Result<u8, String> {
-        Ok(self.take(1)?[0])
-    }
-    pub(crate) fn u32(&mut self) -> Result<u32, String> {
-        Ok(u32::from_le_bytes(self.take(4)?.try_into().unwrap()))
-    }
-    pub(crate) fn f64(&mut self) -> Result<f64, String> {
-        Ok(f64::from_le_bytes(self.take(8)?.try_into().unwrap()))
-    }
-}
 
 #[cfg(test)]
 mod tests {

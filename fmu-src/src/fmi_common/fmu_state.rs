@@ -28,12 +28,12 @@ impl SavedState {
         let mut body = vec![self.mode.code(), self.stop_time.is_some() as u8];
         body.extend_from_slice(&self.stop_time.unwrap_or(0.0).to_le_bytes());
         body.extend_from_slice(&self.model.to_bytes());
-        crate::model::frame(FMU_STATE_MAGIC, &body)
+        crate::physics::bytes::frame(FMU_STATE_MAGIC, &body)
     }
 
     /// Inverse of [`SavedState::to_bytes`]; refuses what the FMU would never have written.
     fn from_bytes(bytes: &[u8]) -> Result<SavedState, String> {
-        let body = crate::model::unframe(FMU_STATE_MAGIC, bytes)?;
+        let body = crate::physics::bytes::unframe(FMU_STATE_MAGIC, bytes)?;
         let (head, model) = body.split_at_checked(10).ok_or("state is truncated")?;
         let mode = State::from_code(head[0])
             .ok_or_else(|| format!("state has an unknown FMI mode code {}", head[0]))?;

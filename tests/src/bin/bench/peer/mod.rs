@@ -12,7 +12,7 @@ mod cvode;
 
 use std::ffi::{c_int, c_void};
 
-use ehsv_actuator::physics::rhs::{Held, Sampled, WholeModel, I, NY, PA, PB, U, UI, V, X, XF, XS};
+use ehsv_physics::rhs::{Held, Sampled, WholeModel, I, NY, PA, PB, U, UI, V, X, XF, XS};
 use ehsv_actuator::physics::{ControlMode, DriverKind};
 use ehsv_actuator::variables::{vr, N_VARIABLES};
 
@@ -71,7 +71,7 @@ pub fn run(
     for (k, v) in values.iter_mut().enumerate() {
         *v = start.get(k).unwrap();
     }
-    let model = WholeModel::from_values(&values)?;
+    let model = WholeModel::new(&ehsv_actuator::model::params(&values)?)?;
     let rail = model.rail(values[vr::V_SUPPLY]);
     let mut y0 = [0.0; NY];
     y0[I] = values[vr::I_COIL];

@@ -4,7 +4,7 @@
 //! Q_ref / (K3*K1/Kw), the valve's static flow gain.
 
 use super::params::{ControlMode, OuterLoopParams};
-use crate::model::Reader;
+use crate::bytes::Reader;
 
 /// The active loop's parameters.
 #[derive(Clone, Copy, Debug)]

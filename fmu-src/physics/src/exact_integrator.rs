@@ -739,9 +739,9 @@ fn horner_with_slope(coef: &[f64], t: f64) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::driver::Mode;
-    use crate::physics::state::{U, VMAX};
-    use crate::physics::{mode_system, MODES};
+    use crate::driver::Mode;
+    use crate::state::{U, VMAX};
+    use crate::{mode_system, MODES};
 
     #[test]
     fn a_line_or_parabola_crosses_where_its_roots_say() {
@@ -767,7 +767,7 @@ mod tests {
     #[test]
     fn closed_form_crossings_match_the_sampled_search() {
         assert!(taylor_terms(CLOSED_FORM_WINDOW) <= CLOSED_FORM_WINDOW_TERMS);
-        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let c = Coefficients::new(&crate::Params::PAPER).unwrap();
         let mut searched = 0;
         for mode in [Mode::SlewUp, Mode::SlewDown] {
             let sys = mode_system(&c, mode);
@@ -777,7 +777,7 @@ mod tests {
                 let mut z =
                     Vector::from_fn(|k, _| [0.0, 0.0, 0.0, 1e-6, 0.0, 2e-5, 0.0, 72.0, 1.0][k]);
                 z[U] = sign * u0;
-                z[crate::physics::state::IREF] = sign * i_ref;
+                z[crate::state::IREF] = sign * i_ref;
                 let h = 5e-5;
                 let at_start = GuardsAt::new(&sys, &z, 0);
                 // A slew of microseconds (to a rail) goes to the sampled search.
@@ -812,7 +812,7 @@ mod tests {
     /// detuned, it takes all of them.
     #[test]
     fn guards_the_search_shortens_are_polynomials_along_the_trajectory() {
-        let tuned = crate::model::start_params();
+        let tuned = crate::Params::PAPER;
         let mut detuned = tuned;
         detuned.opamp.ki *= 1.5;
         let z = Vector::from_fn(|k, _| [2e-3, 1.5, 3.0, 1e-6, 1e-3, 2e-5, 5e-3, 72.0, 1.0][k]);

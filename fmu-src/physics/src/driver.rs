@@ -232,7 +232,7 @@ mod tests {
 
     #[test]
     fn rail_guards_of_the_linear_mode_bound_the_output() {
-        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let c = Coefficients::new(&crate::Params::PAPER).unwrap();
         let mut z = Vector::zeros();
         z[VMAX] = 72.0;
         z[ONE] = 1.0;

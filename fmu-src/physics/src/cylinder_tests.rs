@@ -1,8 +1,8 @@
 use super::*;
-use crate::physics::cylinder_jacobian::linearise;
-use crate::physics::rosenbrock::tests::simulate;
-use crate::physics::rosenbrock::{IntegratorMemory, STATE_SCALE};
-use crate::physics::valve::port_flows;
+use crate::cylinder_jacobian::linearise;
+use crate::rosenbrock::tests::simulate;
+use crate::rosenbrock::{IntegratorMemory, STATE_SCALE};
+use crate::valve::port_flows;
 
 const P_RATED: f64 = 6.8948e6;
 /// Spool opening for the rated 10 mA flow (2.5268e-4 m3/s, K3 times the spool opening).

@@ -1,5 +1,5 @@
 use super::*;
-use crate::physics::cylinder::{equilibrium, CylinderState};
+use crate::cylinder::{equilibrium, CylinderState};
 
 const P_RATED: f64 = 6.8948e6;
 /// Spool opening for the rated 10 mA flow (2.5268e-4 m3/s, K3 times the spool opening).

@@ -2,7 +2,7 @@
 //! [`super::valve::port_flows`]).
 //!
 //! State `[p_A, p_B, x, v]`: chamber pressures, piston position (0 = mid-stroke, + = extension)
-//! and velocity. The spool position `x_s(t)` comes from the exact integrator of [`crate::physics`] as a function of
+//! and velocity. The spool position `x_s(t)` comes from the exact integrator of [`crate`] as a function of
 //! time over each step; the Rosenbrock integrator ([`super::rosenbrock`]) advances it.
 //!
 //! # Modelling choices
@@ -90,7 +90,7 @@ impl std::ops::Deref for CylinderParams {
 impl Default for CylinderParams {
     /// The start values of the variable table.
     fn default() -> Self {
-        let p = crate::model::start_params();
+        let p = crate::Params::PAPER;
         CylinderParams::new(&p.cylinder, &p.valve).expect("start values are valid")
     }
 }

@@ -140,7 +140,7 @@ const MAX_CHEAP_BACKOFF: u32 = 64;
 #[cfg(test)]
 impl Default for IntegratorMemory {
     fn default() -> Self {
-        IntegratorMemory::new(crate::variables::VARIABLES[crate::variables::vr::SOLVER_RTOL].start)
+        IntegratorMemory::new(crate::Params::PAPER.solver_rtol)
     }
 }
 

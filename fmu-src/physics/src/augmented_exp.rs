@@ -298,8 +298,8 @@ fn solve(mut q: [[f64; EVOLVING]; EVOLVING], mut rhs: Top) -> Option<Top> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::valve::Stops;
-    use crate::physics::{mode_system, Coefficients, MODES};
+    use crate::valve::Stops;
+    use crate::{mode_system, Coefficients, MODES};
 
     /// Every mode, free and at every combination of stops, over the spans the propagator
     /// cache asks for (|lambda| h up to 6): the general exponential's result to rounding, and
@@ -307,7 +307,7 @@ mod tests {
     /// are taken.
     #[test]
     fn matches_the_general_exponential_for_every_mode_and_span() {
-        let mut params = crate::model::start_params();
+        let mut params = crate::Params::PAPER;
         params.valve.x_flapper_max = 30e-6;
         params.valve.x_spool_max = 0.2e-3;
         let c = Coefficients::new(&params).unwrap();

@@ -10,10 +10,10 @@ use super::rosenbrock::{IntegratorMemory, MEMORY_VALUES};
 use super::state::N;
 use super::valve::Stops;
 use super::{DrivenCylinder, Inputs, Params, Physics};
-use crate::model::Reader;
+use crate::bytes::Reader;
 
 impl Physics {
-    pub(crate) fn write_bytes(&self, out: &mut Vec<u8>) {
+    pub fn write_bytes(&self, out: &mut Vec<u8>) {
         out.push(self.mode.index() as u8);
         out.push(self.stops.code() as u8);
         for x in self.z.iter() {
@@ -28,11 +28,7 @@ impl Physics {
     }
 
     /// Inverse of [`Physics::write_bytes`], for these parameters and inputs.
-    pub(crate) fn read_bytes(
-        params: &Params,
-        inputs: &Inputs,
-        r: &mut Reader,
-    ) -> Result<Physics, String> {
+    pub fn read_bytes(params: &Params, inputs: &Inputs, r: &mut Reader) -> Result<Physics, String> {
         let mode_index = r.u8()? as usize;
         let mode = *MODES
             .get(mode_index)

@@ -9,6 +9,7 @@
 
 mod advance;
 mod augmented_exp;
+pub mod bytes;
 mod coil;
 mod cylinder;
 mod cylinder_jacobian;
@@ -20,6 +21,7 @@ mod lu4;
 mod outer_loop;
 mod params;
 mod retune;
+#[cfg(feature = "whole-model")]
 pub mod rhs;
 mod root_finding;
 mod rosenbrock;
@@ -233,7 +235,7 @@ impl Held {
 impl Physics {
     /// Builds the mode systems and puts the model in equilibrium for `inputs` at
     /// `start_time` (the sampling clocks of the digital loops count from time 0).
-    pub(crate) fn start(
+    pub fn start(
         params: &Params,
         inputs: &Inputs,
         start_time: f64,
@@ -280,7 +282,7 @@ impl Physics {
     /// its first; the gait's second built the loop period's). Only the propagator cache
     /// changes: a probe takes the step and hands its cache back; a probe that fails leaves
     /// nothing.
-    pub(crate) fn prepare_first_step(&mut self, inputs: &Inputs, t_start: f64, step: f64) {
+    pub fn prepare_first_step(&mut self, inputs: &Inputs, t_start: f64, step: f64) {
         // On the heap: two instances' worth of stack is more than some importers' threads have.
         let mut probe = Box::new(self.clone());
         if probe.advance(inputs, t_start, step).is_ok() {
@@ -341,12 +343,12 @@ impl Physics {
     }
 
     /// The work done so far.
-    pub(crate) fn work(&self) -> Work {
+    pub fn work(&self) -> Work {
         Work { exponentials: self.cache.exponentials, ..self.work }
     }
 
     /// The outputs at the current state.
-    pub(crate) fn outputs(&self) -> Outputs {
+    pub fn outputs(&self) -> Outputs {
         let z = &self.z;
         let mut out = Outputs {
             i_coil: z[I],
@@ -369,7 +371,7 @@ impl Physics {
     /// supply at or above the relief valves' setting; reports relief valves that opened.
     /// `None` for a step that changes nothing ([`Physics::rests`]; its supply passed with the
     /// step before): the state, and so the outputs, stay as they are.
-    pub(crate) fn step(
+    pub fn step(
         &mut self,
         inputs: &Inputs,
         t_start: f64,
@@ -396,7 +398,7 @@ mod tests {
     /// the held constants dynamics, and over a step they must come out as they went in.
     #[test]
     fn no_mode_moves_the_held_constants() {
-        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let c = Coefficients::new(&Params::PAPER).unwrap();
         let z = Vector::from_fn(|k, _| 0.3 + k as f64);
         for mode in MODES {
             let a = dynamics(&c, mode);
@@ -417,9 +419,9 @@ mod tests {
     /// the linear mode's for the rest of the step.
     #[test]
     fn a_brief_slew_builds_no_propagator_of_its_own() {
-        let p = crate::model::start_params();
+        let p = Params::PAPER;
         assert_eq!(p.driver, DriverKind::OpampPi);
-        let inputs = |i_ref| Inputs { i_ref, ..crate::model::start_inputs() };
+        let inputs = |i_ref| Inputs { i_ref, ..Inputs::PAPER };
         let mut physics = Physics::start(&p, &inputs(0.0), 0.0).unwrap();
         physics.step(&inputs(0.0), 0.0, 1e-4).unwrap();
         let before = physics.work();
@@ -439,11 +441,11 @@ mod tests {
     /// reference across 0.5 s builds no propagator after its first steps.
     #[test]
     fn sample_periods_share_their_propagator_across_the_clock() {
-        let mut p = crate::model::start_params();
+        let mut p = Params::PAPER;
         p.control_mode = ControlMode::Position;
         let inputs = |t: f64| Inputs {
             x_ref: 5e-3 * (2.0 * std::f64::consts::PI * 2.0 * t).sin(),
-            ..crate::model::start_inputs()
+            ..Inputs::PAPER
         };
         let (t0, h) = (0.45, 1e-4);
         let mut physics = Physics::start(&p, &inputs(t0), t0).unwrap();
@@ -466,9 +468,9 @@ mod tests {
     /// steps builds an exponential (two and one before).
     #[test]
     fn a_position_loop_builds_no_exponential_in_its_first_steps() {
-        let mut p = crate::model::start_params();
+        let mut p = Params::PAPER;
         p.control_mode = ControlMode::Position;
-        let at_rest = crate::model::start_inputs();
+        let at_rest = Inputs::PAPER;
         let mut physics = Physics::start(&p, &at_rest, 0.0).unwrap();
         physics.prepare_first_step(&at_rest, 0.0, 1e-4);
         let prepared = physics.work().exponentials;
@@ -495,10 +497,10 @@ mod tests {
     /// workload's cost).
     #[test]
     fn a_guard_bending_away_from_its_threshold_is_not_searched() {
-        let p = crate::model::start_params();
+        let p = Params::PAPER;
         let sine = |t: f64| Inputs {
             i_ref: 5e-3 * (2.0 * std::f64::consts::PI * 100.0 * t).sin(),
-            ..crate::model::start_inputs()
+            ..Inputs::PAPER
         };
         let mut physics = Physics::start(&p, &sine(0.0), 0.0).unwrap();
         let h = 1e-4;
@@ -529,12 +531,9 @@ mod tests {
     /// unprepared one, through steps of other sizes too.
     #[test]
     fn prepared_first_step_computes_no_exponential_and_changes_no_result() {
-        let mut p = crate::model::start_params();
+        let mut p = Params::PAPER;
         p.control_mode = ControlMode::Position;
-        let inputs = |k: usize| Inputs {
-            x_ref: 5e-3 * (k as f64 * 0.01).sin(),
-            ..crate::model::start_inputs()
-        };
+        let inputs = |k: usize| Inputs { x_ref: 5e-3 * (k as f64 * 0.01).sin(), ..Inputs::PAPER };
         let plain = Physics::start(&p, &inputs(0), 0.0).unwrap();
         let mut prepared = plain.clone();
         prepared.prepare_first_step(&inputs(0), 0.0, 1e-4);

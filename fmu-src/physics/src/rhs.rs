@@ -22,7 +22,6 @@ use super::outer_loop::OuterLoop;
 use super::rosenbrock::STATE_SCALE;
 use super::state::{self, Mat, Vector};
 use super::{coil, valve, Coefficients, ControlMode, DriverKind, Outputs, Params};
-use crate::variables::N_VARIABLES;
 
 /// State size: coil current, PI integrator output, driver output, flapper position and
 /// velocity, spool, chamber pressures A and B, piston position and velocity.
@@ -79,11 +78,6 @@ impl WholeModel {
         coil::coil_rows(&c, Mode::Linear, &mut coil_valve);
         valve::valve_rows(&c, &mut coil_valve);
         Ok(WholeModel { c, coil_valve })
-    }
-
-    /// From a value array (every variable in value-reference order), parameters checked.
-    pub fn from_values(values: &[f64; N_VARIABLES]) -> Result<WholeModel, String> {
-        WholeModel::new(&crate::model::params(values)?)
     }
 
     pub fn driver(&self) -> DriverKind {

@@ -91,11 +91,11 @@ pub(crate) fn pulled_back(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::state::IREF;
-    use crate::physics::{mode_system, Coefficients};
+    use crate::state::IREF;
+    use crate::{mode_system, Coefficients};
 
     fn systems() -> [ModeSystem; MODES.len()] {
-        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let c = Coefficients::new(&crate::Params::PAPER).unwrap();
         MODES.map(|m| mode_system(&c, m))
     }
 

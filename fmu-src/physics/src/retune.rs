@@ -11,7 +11,7 @@ impl Physics {
     /// control mode, sampling clocks) and the hardware are the caller's to keep. `inputs`
     /// and `time` only seed the rebuild; the state is the current one. On error nothing
     /// changes.
-    pub(crate) fn retune(
+    pub fn retune(
         &mut self,
         params: &Params,
         inputs: &Inputs,

@@ -201,3 +201,81 @@ pub struct Outputs {
     pub v_piston: f64,
     pub f_hydraulic: f64,
 }
+
+impl Params {
+    /// The device of the paper: the op-amp PI driver on the Moog 30 valve and a 16 mm
+    /// cylinder with a 5 kg load, driven by the current command (every parameter's start
+    /// value; the variable table takes its start values from here).
+    pub const PAPER: Params = Params {
+        driver: DriverKind::OpampPi,
+        control_mode: ControlMode::Current,
+        opamp: PiDriverParams { kp: 1.6e5, ki: 5.0e7, slew_rate: 2.0e7 },
+        opamp_v_drop: 0.0,
+        industrial: PiDriverParams { kp: 2500.0, ki: 781250.0, slew_rate: 1.0e6 },
+        hbridge: HBridgeParams {
+            f_pwm: 20000.0,
+            f_sample: 20000.0,
+            kp: 9000.0,
+            ki: 2812500.0,
+            feedforward: true,
+        },
+        coil: CoilParams { inductance: 3.2, resistance: 1000.0, r_sense: 0.0, k_backemf: 0.0 },
+        valve: ValveParams {
+            k1: 2.82462,
+            kf: 511.545,
+            kw: 74.2853,
+            k2: 0.0967740,
+            k3: 0.664515,
+            spool_area: 1.67742e-5,
+            zeta: 0.4,
+            f_n: 814.0,
+            x_flapper_max: 0.0,
+            x_spool_max: 0.0,
+            dp_rated: 6.8948e6,
+            dp_laminar: 1.0e5,
+        },
+        cylinder: CylinderLoadParams {
+            bore: 0.016,
+            rod: 0.010,
+            stroke: 0.080,
+            mass: 5.0,
+            beta: 1.0e9,
+            v_dead: 2.0e-6,
+            b_viscous: 200.0,
+            f_coulomb: 20.0,
+            f_static: 30.0,
+            v_stribeck: 0.01,
+            v_friction_smooth: 1.0e-4,
+            k_endstop: 1.0e8,
+            c_endstop: 1.0e4,
+            c_leak: 0.0,
+            c_leak_external: 0.0,
+            p_tank: 0.0,
+            p_cavitation: -0.9e5,
+            dp_cavitation_band: 5.0e4,
+            relief_p_crack: 8.0e6,
+            relief_dp_override: 1.0e6,
+            relief_q_rated: 4.0e-4,
+        },
+        outer_loop: OuterLoopParams {
+            f_sample: 20000.0,
+            i_max: 0.01,
+            flow: [2.0, 0.0, 0.0],
+            position: [1.0, 0.0, 0.0],
+        },
+        solver_rtol: 1.0e-7,
+    };
+}
+
+impl Inputs {
+    /// The inputs a run starts with: the paper's 72 V driver supply and 1000 psi hydraulic
+    /// supply, no command, no load.
+    pub const PAPER: Inputs = Inputs {
+        i_ref: 0.0,
+        v_supply: 72.0,
+        p_supply: 6.8948e6,
+        f_ext: 0.0,
+        q_ref: 0.0,
+        x_ref: 0.0,
+    };
+}

@@ -9,7 +9,7 @@
 //! part is linear (see [`super::exact_integrator`]).
 
 use super::params::HBridgeParams;
-use crate::model::Reader;
+use crate::bytes::Reader;
 
 impl HBridgeParams {
     pub(crate) fn period(&self) -> f64 {

@@ -22,11 +22,11 @@ pub(crate) fn steady_current(c: &Coefficients, u: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::Coefficients;
+    use crate::Coefficients;
 
     #[test]
     fn coil_row_is_the_rl_circuit_and_ideal_source_has_none() {
-        let c = Coefficients::new(&crate::model::start_params()).unwrap();
+        let c = Coefficients::new(&crate::Params::PAPER).unwrap();
         let mut a = Mat::zeros();
         coil_rows(&c, Mode::Linear, &mut a);
         assert_eq!(a[(I, I)], -1000.0 / 3.2);
