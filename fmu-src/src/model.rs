@@ -7,7 +7,7 @@
 
 use std::cell::RefCell;
 
-use crate::physics::bytes::{frame, unframe, Reader};
+use crate::physics::bytes::{frame, unframe, ByteReader};
 use crate::physics::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
     OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams, Work,
@@ -285,7 +285,7 @@ impl Model {
     /// Inverse of [`Model::to_bytes`]; refuses truncated, corrupted or foreign bytes.
     pub fn from_bytes(bytes: &[u8]) -> Result<Model, String> {
         let body = unframe(MAGIC, bytes)?;
-        let mut r = Reader::new(body);
+        let mut r = ByteReader::new(body);
         let n = r.u32()? as usize;
         if n != N_VARIABLES {
             return Err(format!("state has {n} variables, this FMU has {N_VARIABLES}"));
@@ -519,7 +519,6 @@ impl State {
 pub(crate) fn start_params() -> Params {
     params(&start_values()).expect("the start values are valid")
 }
-
 
 /// The inputs in the value array.
 fn inputs(v: &[f64; N_VARIABLES]) -> Inputs {

@@ -1,5 +1,5 @@
 //! Byte framing of saved states, used by both sides: the physics writes and reads its part
-//! with [`Reader`], the model and the FMI layer frame theirs with [`frame`] and [`unframe`]
+//! with [`ByteReader`], the model and the FMI layer frame theirs with [`frame`] and [`unframe`]
 //! (a magic naming the format and its version, the length, and an FNV-1a 64 checksum).
 
 fn checksum(bytes: &[u8]) -> u64 {
@@ -34,14 +34,14 @@ pub fn unframe<'a>(magic: &[u8; 8], bytes: &'a [u8]) -> Result<&'a [u8], String>
 }
 
 /// Bounds-checked little-endian reader for state bytes.
-pub struct Reader<'a> {
+pub struct ByteReader<'a> {
     bytes: &'a [u8],
     at: usize,
 }
 
-impl<'a> Reader<'a> {
+impl<'a> ByteReader<'a> {
     pub fn new(bytes: &'a [u8]) -> Self {
-        Reader { bytes, at: 0 }
+        ByteReader { bytes, at: 0 }
     }
 
     /// Whether every byte was read (a longer input is not this format).
@@ -50,7 +50,7 @@ impl<'a> Reader<'a> {
     }
 }
 
-impl Reader<'_> {
+impl ByteReader<'_> {
     fn take(&mut self, n: usize) -> Result<&[u8], String> {
         let end = self
             .at

@@ -9,7 +9,7 @@
 //! part is linear (see [`super::exact_integrator`]).
 
 use super::params::HBridgeParams;
-use crate::bytes::Reader;
+use crate::bytes::ByteReader;
 
 impl HBridgeParams {
     pub(crate) fn period(&self) -> f64 {
@@ -173,7 +173,7 @@ impl Digital {
         }
     }
 
-    pub(crate) fn read_bytes(r: &mut Reader) -> Result<Self, String> {
+    pub(crate) fn read_bytes(r: &mut ByteReader) -> Result<Self, String> {
         let flags = r.u8()?;
         let next_edge = r.u8()?;
         let mut x = [0.0; 7];

@@ -235,11 +235,7 @@ impl Held {
 impl Physics {
     /// Builds the mode systems and puts the model in equilibrium for `inputs` at
     /// `start_time` (the sampling clocks of the digital loops count from time 0).
-    pub fn start(
-        params: &Params,
-        inputs: &Inputs,
-        start_time: f64,
-    ) -> Result<Physics, String> {
+    pub fn start(params: &Params, inputs: &Inputs, start_time: f64) -> Result<Physics, String> {
         let rtol = params.solver_rtol;
         let params = Coefficients::new(params)?;
         let systems = MODES.map(|m| mode_system(&params, m));

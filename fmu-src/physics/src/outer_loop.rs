@@ -4,7 +4,7 @@
 //! Q_ref / (K3*K1/Kw), the valve's static flow gain.
 
 use super::params::{ControlMode, OuterLoopParams};
-use crate::bytes::Reader;
+use crate::bytes::ByteReader;
 
 /// The active loop's parameters.
 #[derive(Clone, Copy, Debug)]
@@ -97,7 +97,7 @@ impl OuterLoop {
         }
     }
 
-    pub(crate) fn read_bytes(r: &mut Reader) -> Result<Self, String> {
+    pub(crate) fn read_bytes(r: &mut ByteReader) -> Result<Self, String> {
         let active = r.u8()?;
         let mut x = [0.0; 4];
         for v in x.iter_mut() {

@@ -11,12 +11,7 @@ impl Physics {
     /// control mode, sampling clocks) and the hardware are the caller's to keep. `inputs`
     /// and `time` only seed the rebuild; the state is the current one. On error nothing
     /// changes.
-    pub fn retune(
-        &mut self,
-        params: &Params,
-        inputs: &Inputs,
-        time: f64,
-    ) -> Result<(), String> {
+    pub fn retune(&mut self, params: &Params, inputs: &Inputs, time: f64) -> Result<(), String> {
         let mut next = Physics::start(params, inputs, time)?;
         next.digital = self.digital;
         next.outer = self.outer;

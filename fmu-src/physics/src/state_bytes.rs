@@ -10,7 +10,7 @@ use super::rosenbrock::{IntegratorMemory, MEMORY_VALUES};
 use super::state::N;
 use super::valve::Stops;
 use super::{DrivenCylinder, Inputs, Params, Physics};
-use crate::bytes::Reader;
+use crate::bytes::ByteReader;
 
 impl Physics {
     pub fn write_bytes(&self, out: &mut Vec<u8>) {
@@ -28,7 +28,11 @@ impl Physics {
     }
 
     /// Inverse of [`Physics::write_bytes`], for these parameters and inputs.
-    pub fn read_bytes(params: &Params, inputs: &Inputs, r: &mut Reader) -> Result<Physics, String> {
+    pub fn read_bytes(
+        params: &Params,
+        inputs: &Inputs,
+        r: &mut ByteReader,
+    ) -> Result<Physics, String> {
         let mode_index = r.u8()? as usize;
         let mode = *MODES
             .get(mode_index)

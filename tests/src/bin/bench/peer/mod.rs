@@ -12,9 +12,9 @@ mod cvode;
 
 use std::ffi::{c_int, c_void};
 
-use ehsv_physics::rhs::{Held, Sampled, WholeModel, I, NY, PA, PB, U, UI, V, X, XF, XS};
 use ehsv_actuator::physics::{ControlMode, DriverKind};
 use ehsv_actuator::variables::{vr, N_VARIABLES};
+use ehsv_physics::rhs::{Held, Sampled, WholeModel, I, NY, PA, PB, U, UI, V, X, XF, XS};
 
 pub use cvode::{Api, Counters};
 
