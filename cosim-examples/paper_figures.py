@@ -9,7 +9,7 @@
 
     .venv/bin/python cosim-examples/paper_figures.py [--fmi3] [--out-dir out]
 
-The README's gallery is this command with --out-dir docs/gallery.
+The gallery (docs/studies.md "Gallery") is this command with --out-dir docs/gallery.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Cross-platform archives and their tests (README "Platforms"):
+# Cross-platform archives and their tests (docs/fmi.md "Platforms", docs/testing.md "Cross builds"):
 #   1. scripts/setup-cross.sh                          installs the routes (apt-get, pip)
 #   2. cargo run --release -p build-fmu -- --all-targets   target/fmu/ with all five binaries
 #   3. tests/cross/run_cross.py                        Windows DLL under Wine, aarch64 under

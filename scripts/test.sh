@@ -41,13 +41,14 @@ stage doc env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace
 stage ruff-check .venv/bin/ruff check cosim-examples tests/python
 stage ruff-format .venv/bin/ruff format --check cosim-examples tests/python
 
-# ---- robustness and conformance (see README "Robustness and conformance"); the fuzz and
-# robustness tests already ran in cargo-test, the importer/state tests in pytest.
+# ---- robustness and conformance (see docs/testing.md "Robustness and conformance"); the
+# fuzz and robustness tests already ran in cargo-test, the importer/state tests in pytest.
 stage valgrind scripts/valgrind.sh
 stage bench-peer bash -c "scripts/setup-bench.sh && cargo run --release -p ehsv-tests --bin bench -- --quick --require-peer"
 
-# ---- platforms (README "Platforms"): cross routes installed by scripts/setup-cross.sh,
-# Windows DLL under Wine, aarch64 under qemu-user, glibc <= 2.17, macOS link-checked.
+# ---- platforms (docs/fmi.md "Platforms", docs/testing.md "Cross builds"): cross routes
+# installed by scripts/setup-cross.sh, Windows DLL under Wine, aarch64 under qemu-user,
+# glibc <= 2.17, macOS link-checked.
 stage cross scripts/test-cross.sh
 
 echo

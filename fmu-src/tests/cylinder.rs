@@ -97,7 +97,8 @@ fn row11_steady_flow_moves_the_piston_at_q_over_area_and_volume_balances() {
 
 #[test]
 fn end_stop_holds_the_rod_and_pressure_stays_below_supply() {
-    // A slow approach (1 mA: ~0.13 m/s) into the + stop; see the README on fast impacts.
+    // A slow approach (1 mA: ~0.13 m/s) into the + stop; fast impacts: docs/model.md,
+    // "Modelling choices".
     let mut m = model(&[]);
     m.set(vr::I_REF, 1e-3).unwrap();
     let trace = run(&mut m, 0.5, 1e-4, &[vr::X_PISTON, vr::P_A, vr::P_B, vr::V_PISTON]);

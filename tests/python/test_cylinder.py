@@ -191,11 +191,11 @@ def fast_impact(version):
 
 
 def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact):
-    """DOCUMENTATION of a known property (README, hydraulics.rs): with the specified stop
-    (1e8 N/m, 1e4 N s/m, no cushioning) an impact at ~1 m/s penetrates ~0.17 mm, rebounds
-    at about half the impact speed, and the returning piston compresses chamber A above
-    p_S (oil is pushed back into the supply port). Not a defect test: it pins the figures
-    to what the physics gives.
+    """DOCUMENTATION of a known property (docs/model.md "Modelling choices", hydraulics.rs):
+    with the specified stop (1e8 N/m, 1e4 N s/m, no cushioning) an impact at ~1 m/s
+    penetrates ~0.17 mm, rebounds at about half the impact speed, and the returning
+    piston compresses chamber A above p_S (oil is pushed back into the supply port). Not a
+    defect test: it pins the figures to what the physics gives.
 
     * penetration: the damped spring-mass x'' + 2 zeta w x' + w^2 x = F/m from x' = v_impact
       (F the hydraulic force at impact) within 1 % (measured 0.09 %);

@@ -14,7 +14,7 @@ Scenario: opamp_pi driver (default), V_supply 72 V, i_ref 0 -> 5 mA at t = 1 ms,
   dangling pointer, and fmpy's native proxy formats it and crashes the process (seen in
   container_configure -> logger_message; our FMU is not on that stack).
 
-Beyond the scenario (README "Importers"):
+Beyond the scenario (docs/fmi.md "Importers tested"):
 * fmpy with the input as a CSV file, through fmpy's read_csv and through the `fmpy
   simulate --input-file` command line;
 * fmpy simulate_fmu with an enumeration start value: fmpy 0.3.32 takes the integer only

@@ -2,7 +2,7 @@
 //! call (`Call`) the set of instance states (`State`) it is allowed in. The shared
 //! `with_instance` frame looks every exported function up here before running it.
 //!
-//! Error semantics (the README's "FMI call sequence and errors" says the same):
+//! Error semantics (docs/fmi.md, "Errors and what is refused", says the same):
 //! * A call that is refused (illegal in the current state, NULL or malformed arguments,
 //!   unknown value references, out-of-range values, a communication point away from the
 //!   FMU time, a state that is not ours) returns Error with a log line and changes
