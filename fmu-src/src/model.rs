@@ -8,12 +8,10 @@
 use std::cell::RefCell;
 
 use crate::physics::bytes::{frame, unframe, ByteReader};
-use crate::physics::{
-    CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
-    OuterLoopParams, Outputs, Params, Physics, PiDriverParams, StepEvents, ValveParams, Work,
-};
+use crate::physics::{ControlMode, DriverKind, Params, Physics, StepEvents, Work};
 use crate::variables::{
-    start_values, vr, Causality, Variability, N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
+    inputs, params, start_values, vr, write_outputs, Causality, Coded, Variability, N_VARIABLES,
+    VALVE_RATED_CURRENT, VARIABLES,
 };
 
 /// The communication step of the default experiment (modelDescription.xml), for which
@@ -296,7 +294,8 @@ impl Model {
         for v in values.iter_mut() {
             *v = r.f64()?;
         }
-        let p = params(&values).map_err(|e| format!("state holds invalid parameters: {e}"))?;
+        check_all(&values).map_err(|e| format!("state holds invalid values: {e}"))?;
+        let p = params(&values)?;
         if initialized {
             check_inputs_fit(&values).map_err(|e| format!("state holds invalid inputs: {e}"))?;
         }
@@ -315,7 +314,7 @@ impl Model {
 #[inline]
 fn settable(index: usize, value: f64, initialized: bool, held: bool) -> Result<(), String> {
     match VARIABLES.get(index) {
-        Some(var) if may_be_set(var.causality, var.variability, initialized) => {
+        Some(var) if var.may_be_set(initialized) => {
             if held {
                 Ok(())
             } else {
@@ -323,15 +322,6 @@ fn settable(index: usize, value: f64, initialized: bool, held: bool) -> Result<(
             }
         }
         _ => Err(not_settable(index)),
-    }
-}
-
-/// Parameters and inputs may be set, fixed parameters only until initialisation ends.
-fn may_be_set(causality: Causality, variability: Variability, initialized: bool) -> bool {
-    match (causality, variability) {
-        (Causality::Parameter, Variability::Fixed) => !initialized,
-        (Causality::Parameter | Causality::Input, _) => true,
-        _ => false,
     }
 }
 
@@ -407,7 +397,7 @@ impl Model {
         let mode = control_mode(v);
         let moving = asks_for_motion(mode, v);
         // The ideal current driver has no supply to miss.
-        let ideal = matches!(DriverKind::from_value(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
+        let ideal = matches!(DriverKind::from_code(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
         InputWarning::ALL.map(|warning| match warning {
             InputWarning::CurrentAboveRating => {
                 current_above_rating && mode == ControlMode::Current
@@ -466,7 +456,7 @@ fn command_text(v: &[f64; N_VARIABLES]) -> String {
 
 /// The control mode in the value array (checked when set, so always one of the three).
 fn control_mode(v: &[f64; N_VARIABLES]) -> ControlMode {
-    ControlMode::from_value(v[vr::CONTROL_MODE]).unwrap_or(ControlMode::Current)
+    ControlMode::from_code(v[vr::CONTROL_MODE]).unwrap_or(ControlMode::Current)
 }
 
 impl State {
@@ -497,21 +487,7 @@ impl State {
 
     /// Writes the physics' outputs into their value references.
     fn write_outputs(&mut self) {
-        let o: Outputs = self.physics.outputs();
-        let v = &mut self.values;
-        v[vr::I_COIL] = o.i_coil;
-        v[vr::U_DRIVER] = o.u_driver;
-        v[vr::DRIVER_SATURATED] = o.driver_saturated as u8 as f64;
-        v[vr::X_FLAPPER] = o.x_flapper;
-        v[vr::X_SPOOL] = o.x_spool;
-        v[vr::Q_VALVE] = o.q_valve;
-        v[vr::Q_A] = o.q_a;
-        v[vr::Q_B] = o.q_b;
-        v[vr::P_A] = o.p_a;
-        v[vr::P_B] = o.p_b;
-        v[vr::X_PISTON] = o.x_piston;
-        v[vr::V_PISTON] = o.v_piston;
-        v[vr::F_HYDRAULIC] = o.f_hydraulic;
+        write_outputs(&self.physics.outputs(), &mut self.values);
     }
 }
 
@@ -520,97 +496,15 @@ pub(crate) fn start_params() -> Params {
     params(&start_values()).expect("the start values are valid")
 }
 
-/// The inputs in the value array.
-fn inputs(v: &[f64; N_VARIABLES]) -> Inputs {
-    Inputs {
-        i_ref: v[vr::I_REF],
-        v_supply: v[vr::V_SUPPLY],
-        p_supply: v[vr::P_SUPPLY],
-        f_ext: v[vr::F_EXT],
-        q_ref: v[vr::Q_REF],
-        x_ref: v[vr::X_REF],
-    }
-}
-
-/// The parameters in the value array, each checked against its range in the table
-/// (single values were checked when set; this checks them as a whole, e.g. restored bytes).
-pub fn params(v: &[f64; N_VARIABLES]) -> Result<Params, String> {
-    let driver = DriverKind::from_value(v[vr::DRIVER])?;
-    for (var, &value) in VARIABLES.iter().zip(v.iter()) {
-        if var.causality == Causality::Parameter {
+/// Checks every parameter and input of a value array against its type and range: the
+/// values of a restored state, which did not come through a setter.
+fn check_all(values: &[f64; N_VARIABLES]) -> Result<(), String> {
+    for (var, &value) in VARIABLES.iter().zip(values.iter()) {
+        if var.has_start() {
             var.check(value)?;
         }
     }
-    let pi = |kp: usize, ki: usize, slew_rate: usize| PiDriverParams {
-        kp: v[kp],
-        ki: v[ki],
-        slew_rate: v[slew_rate],
-    };
-    let pid = |kp: usize, ki: usize, kd: usize| [v[kp], v[ki], v[kd]];
-    Ok(Params {
-        driver,
-        control_mode: ControlMode::from_value(v[vr::CONTROL_MODE])?,
-        opamp: pi(vr::DRIVER_KP, vr::DRIVER_KI, vr::DRIVER_SLEW_RATE),
-        opamp_v_drop: v[vr::DRIVER_V_DROP],
-        industrial: pi(vr::INDUSTRIAL_KP, vr::INDUSTRIAL_KI, vr::INDUSTRIAL_SLEW_RATE),
-        hbridge: HBridgeParams {
-            f_pwm: v[vr::HBRIDGE_F_PWM],
-            f_sample: v[vr::HBRIDGE_F_SAMPLE],
-            kp: v[vr::HBRIDGE_KP],
-            ki: v[vr::HBRIDGE_KI],
-            feedforward: v[vr::HBRIDGE_FEEDFORWARD] != 0.0,
-        },
-        coil: CoilParams {
-            inductance: v[vr::COIL_L],
-            resistance: v[vr::COIL_R],
-            r_sense: v[vr::COIL_R_SENSE],
-            k_backemf: v[vr::COIL_K_B],
-        },
-        valve: ValveParams {
-            k1: v[vr::VALVE_K1],
-            kf: v[vr::VALVE_KF],
-            kw: v[vr::VALVE_KW],
-            k2: v[vr::VALVE_K2],
-            k3: v[vr::VALVE_K3],
-            spool_area: v[vr::VALVE_A_S],
-            zeta: v[vr::VALVE_ZETA],
-            f_n: v[vr::VALVE_F_N],
-            x_flapper_max: v[vr::VALVE_X_FLAPPER_MAX],
-            x_spool_max: v[vr::VALVE_X_SPOOL_MAX],
-            dp_rated: v[vr::VALVE_DP_RATED],
-            dp_laminar: v[vr::VALVE_DP_LAMINAR],
-        },
-        cylinder: CylinderLoadParams {
-            bore: v[vr::CYLINDER_BORE],
-            rod: v[vr::CYLINDER_ROD],
-            stroke: v[vr::CYLINDER_STROKE],
-            mass: v[vr::CYLINDER_MASS],
-            beta: v[vr::CYLINDER_BETA],
-            v_dead: v[vr::CYLINDER_V_DEAD],
-            b_viscous: v[vr::CYLINDER_B_VISCOUS],
-            f_coulomb: v[vr::CYLINDER_F_COULOMB],
-            f_static: v[vr::CYLINDER_F_STATIC],
-            v_stribeck: v[vr::CYLINDER_V_STRIBECK],
-            v_friction_smooth: v[vr::CYLINDER_V_FRICTION_SMOOTH],
-            k_endstop: v[vr::CYLINDER_K_ENDSTOP],
-            c_endstop: v[vr::CYLINDER_C_ENDSTOP],
-            c_leak: v[vr::CYLINDER_C_LEAK],
-            c_leak_external: v[vr::CYLINDER_C_LEAK_EXTERNAL],
-            p_tank: v[vr::HYDRAULICS_P_TANK],
-            p_cavitation: v[vr::HYDRAULICS_P_CAVITATION],
-            dp_cavitation_band: v[vr::HYDRAULICS_DP_CAVITATION_BAND],
-            relief_p_crack: v[vr::RELIEF_P_CRACK],
-            relief_dp_override: v[vr::RELIEF_DP_OVERRIDE],
-            relief_q_rated: v[vr::RELIEF_Q_RATED],
-        },
-        outer_loop: OuterLoopParams {
-            f_sample: v[vr::LOOP_F_SAMPLE],
-            i_max: v[vr::LOOP_I_MAX],
-            flow: pid(vr::FLOW_KP, vr::FLOW_KI, vr::FLOW_KD),
-            position: pid(vr::POSITION_KP, vr::POSITION_KI, vr::POSITION_KD),
-        },
-        solver_rtol: v[vr::SOLVER_RTOL],
-    })
+    Ok(())
 }
 
 /// Why [`Model::check_step`] refuses a step.
@@ -648,31 +542,16 @@ mod tests {
     fn params_are_checked_against_the_table_and_name_the_variable() {
         let mut values = start_values();
         values[vr::CYLINDER_MASS] = 0.0;
-        assert!(params(&values).unwrap_err().contains("cylinder.mass"));
+        assert!(check_all(&values).unwrap_err().contains("cylinder.mass"));
         values[vr::CYLINDER_MASS] = 5.0;
         values[vr::CYLINDER_BETA] = f64::NAN;
-        assert!(params(&values).unwrap_err().contains("cylinder.beta"));
+        assert!(check_all(&values).unwrap_err().contains("cylinder.beta"));
         values[vr::CYLINDER_BETA] = 1e9;
         values[vr::CYLINDER_ROD] = 0.02;
         assert!(Physics::start(&params(&values).unwrap(), &inputs(&values), 0.0)
             .err()
             .unwrap()
             .contains("cylinder.rod"));
-    }
-
-    #[test]
-    fn typed_params_mirror_the_value_array() {
-        let mut values = start_values();
-        values[vr::DRIVER] = 3.0;
-        values[vr::INDUSTRIAL_KP] = 1234.0;
-        values[vr::POSITION_KD] = 0.5;
-        values[vr::VALVE_DP_LAMINAR] = 2e5;
-        let p = params(&values).unwrap();
-        assert_eq!(p.driver, DriverKind::Industrial);
-        assert_eq!(p.industrial.kp, 1234.0);
-        assert_eq!(p.outer_loop.position, [1.0, 0.0, 0.5]);
-        assert_eq!(p.valve.dp_laminar, 2e5);
-        assert_eq!(p.coil.inductance, 3.2);
     }
 
     #[test]

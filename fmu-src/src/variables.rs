@@ -76,6 +76,16 @@ impl Variable {
             Causality::Output => Some(Initial::Calculated),
         }
     }
+    /// Whether the variable may be set, before initialisation ends or after: parameters
+    /// and inputs may, fixed parameters only until initialisation ends. (The FMI layer's
+    /// call sequence maps this onto its states.)
+    pub const fn may_be_set(&self, initialized: bool) -> bool {
+        match (self.causality, self.variability) {
+            (Causality::Parameter, Variability::Fixed) => !initialized,
+            (Causality::Parameter | Causality::Input, _) => true,
+            _ => false,
+        }
+    }
     /// Outputs and the independent variable have no start value in the XML.
     pub fn has_start(&self) -> bool {
         matches!(self.causality, Causality::Parameter | Causality::Input)
@@ -138,38 +148,87 @@ impl Variable {
     }
 }
 
-/// An FMI enumeration type: (integer value, item name, description).
+/// An FMI enumeration type: its items (name, description); an item's value is its position.
 pub struct Enumeration {
     pub name: &'static str,
     pub description: &'static str,
-    pub items: &'static [(i64, &'static str, &'static str)],
+    pub items: &'static [(&'static str, &'static str)],
 }
 
-pub const ENUMERATIONS: &[Enumeration] = &[
-    Enumeration {
-        name: "DriverType",
-        description: "Coil driver topology",
-        items: &[
-            (0, "ideal_current", "coil current equals the command exactly (paper eq. 3)"),
-            (1, "voltage", "open-loop voltage R_total*i_cmd clamped at the rails (paper eq. 4)"),
-            (2, "opamp_pi", "high-voltage op-amp PI current driver (the paper's proposal)"),
-            (3, "industrial", "off-the-shelf linear current amplifier (My-502 like)"),
-            (4, "hbridge_pid", "H-bridge with PWM and a digital PI current loop"),
-        ],
-    },
-    Enumeration {
-        name: "ControlMode",
-        description: "Which command drives the coil current",
-        items: &[
-            (0, "current", "i_ref is the current command"),
-            (1, "flow", "flow PID on Q_valve follows Q_ref"),
-            (2, "position", "position PID on the piston follows x_ref"),
-        ],
-    },
-];
+impl Enumeration {
+    /// Items with their values (value, name, description).
+    pub fn valued_items(&self) -> impl Iterator<Item = (i64, &'static str, &'static str)> + '_ {
+        self.items
+            .iter()
+            .enumerate()
+            .map(|(value, &(name, description))| (value as i64, name, description))
+    }
+}
+
+/// The coil driver topologies: an item's value is the position of its
+/// [`DriverKind`] in [`DriverKind::ALL`] (a test holds the two in step).
+pub const DRIVER_TYPE: Enumeration = Enumeration {
+    name: "DriverType",
+    description: "Coil driver topology",
+    items: &[
+        ("ideal_current", "coil current equals the command exactly (paper eq. 3)"),
+        ("voltage", "open-loop voltage R_total*i_cmd clamped at the rails (paper eq. 4)"),
+        ("opamp_pi", "high-voltage op-amp PI current driver (the paper's proposal)"),
+        ("industrial", "off-the-shelf linear current amplifier (My-502 like)"),
+        ("hbridge_pid", "H-bridge with PWM and a digital PI current loop"),
+    ],
+};
+
+/// The command sources, in the order of [`ControlMode::ALL`].
+pub const CONTROL_MODE_TYPE: Enumeration = Enumeration {
+    name: "ControlMode",
+    description: "Which command drives the coil current",
+    items: &[
+        ("current", "i_ref is the current command"),
+        ("flow", "flow PID on Q_valve follows Q_ref"),
+        ("position", "position PID on the piston follows x_ref"),
+    ],
+};
+
+pub const ENUMERATIONS: &[Enumeration] = &[DRIVER_TYPE, CONTROL_MODE_TYPE];
 
 use Causality::*;
 use Variability::*;
+
+use crate::physics::{ControlMode, DriverKind, Inputs, Outputs, Params};
+
+/// A Boolean or enumeration field, stored in the value array as its integer value.
+pub trait Coded: Sized {
+    fn from_code(value: f64) -> Result<Self, String>;
+    fn code(self) -> f64;
+}
+
+impl Coded for bool {
+    fn from_code(value: f64) -> Result<Self, String> {
+        Ok(value != 0.0)
+    }
+    fn code(self) -> f64 {
+        self as u8 as f64
+    }
+}
+
+/// Enumerations are coded by their position in `ALL`.
+macro_rules! coded_enumeration {
+    ($($ty:ty => $variable:literal),*) => {$(
+        impl Coded for $ty {
+            fn from_code(value: f64) -> Result<Self, String> {
+                <$ty>::ALL.get(value as usize).copied().filter(|_| value >= 0.0).ok_or_else(|| {
+                    format!("{} = {value} is not available (0 to {})", $variable, <$ty>::ALL.len() - 1)
+                })
+            }
+            fn code(self) -> f64 {
+                self as u8 as f64
+            }
+        }
+    )*};
+}
+
+coded_enumeration!(DriverKind => "driver", ControlMode => "control_mode");
 
 const fn real(
     name: &'static str,
@@ -199,10 +258,9 @@ const fn input(
     name: &'static str,
     unit: &'static str,
     display: Option<&'static str>,
-    start: f64,
     description: &'static str,
 ) -> Variable {
-    real(name, Input, Continuous, Some(unit), display, start, description)
+    real(name, Input, Continuous, Some(unit), display, 0.0, description)
 }
 
 const fn output(
@@ -218,13 +276,41 @@ const fn output(
 const fn param(
     name: &'static str,
     unit: Option<&'static str>,
-    start: f64,
     description: &'static str,
 ) -> Variable {
-    real(name, Parameter, Fixed, unit, None, start, description)
+    real(name, Parameter, Fixed, unit, None, 0.0, description)
+}
+
+/// A fixed Boolean parameter.
+const fn boolean_param(name: &'static str, description: &'static str) -> Variable {
+    let mut v = param(name, None, description);
+    v.ty = VarType::Boolean;
+    v
+}
+
+/// A fixed parameter choosing one item of `enumeration` (its values 0 to n - 1).
+const fn enumeration(
+    name: &'static str,
+    enumeration: &'static Enumeration,
+    description: &'static str,
+) -> Variable {
+    let mut v = param(name, None, description);
+    v.ty = VarType::Enumeration(enumeration.name);
+    v.range(Some(0.0), Some((enumeration.items.len() - 1) as f64))
+}
+
+/// A Boolean output that changes at events only.
+const fn boolean_output(name: &'static str, description: &'static str) -> Variable {
+    let mut v = real(name, Output, Discrete, None, None, 0.0, description);
+    v.ty = VarType::Boolean;
+    v
 }
 
 impl Variable {
+    const fn with_start(mut self, start: f64) -> Self {
+        self.start = start;
+        self
+    }
     const fn range(mut self, min: Option<f64>, max: Option<f64>) -> Self {
         self.min = min;
         self.max = max;
@@ -248,19 +334,20 @@ impl Variable {
     }
 }
 
-/// The Moog 30's rated coil current (A): the valve's flow gain is specified up to it, the
-/// outer loops limit their command to it by default, and a current command beyond it is
-/// reported with a warning (logStatusWarning).
-pub const VALVE_RATED_CURRENT: f64 = 0.01;
+pub use crate::physics::VALVE_RATED_CURRENT;
 
 /// Longest stroke (m) of a servo cylinder this model describes (`cylinder.stroke`'s maximum,
 /// which bounds `x_ref`).
 const MAX_STROKE: f64 = 1.0;
 
-/// Declares the table and, from the same rows, one constant per variable in [`vr`]: the
-/// value reference of a variable is its row, so no reference is ever numbered by hand.
+/// Declares the table and, from the same rows, one constant per variable in [`vr`] (the
+/// value reference of a variable is its row, so no reference is ever numbered by hand) and
+/// the binding of each row to its typed field: `param[coil.inductance] real` is the field
+/// of [`Params`], `input[..]` of [`Inputs`], `output[..]` of [`Outputs`]; `coded` marks a
+/// Boolean or an enumeration, stored as its integer value. A parameter's or input's start
+/// value is its field's value in [`Params::PAPER`] or [`Inputs::PAPER`].
 macro_rules! variable_table {
-    ($($constant:ident => $row:expr,)*) => {
+    ($($constant:ident => $group:ident [$($field:tt)*] $kind:ident : $row:expr,)*) => {
         /// Row numbers, counted by the compiler.
         #[allow(non_camel_case_types, clippy::upper_case_acronyms)]
         #[repr(usize)]
@@ -280,12 +367,59 @@ macro_rules! variable_table {
 
         pub const N_VARIABLES: usize = [$(stringify!($constant),)*].len();
 
-        pub static VARIABLES: [Variable; N_VARIABLES] = [$($row,)*];
+        pub static VARIABLES: [Variable; N_VARIABLES] =
+            [$($row.with_start(start_value!($group [$($field)*] $kind)),)*];
+
+        /// The typed parameters in a value array (its values were checked when they were set or restored).
+        pub fn params(values: &[f64; N_VARIABLES]) -> Result<Params, String> {
+            let mut params = Params::PAPER;
+            $(read_field!(param, $group [$($field)*] $kind, params, values[vr::$constant]);)*
+            Ok(params)
+        }
+
+        /// The typed inputs in a value array.
+        pub fn inputs(values: &[f64; N_VARIABLES]) -> Inputs {
+            let mut inputs = Inputs::PAPER;
+            (|| -> Result<(), String> {
+                $(read_field!(input, $group [$($field)*] $kind, inputs, values[vr::$constant]);)*
+                Ok(())
+            })()
+            .expect("inputs are real numbers");
+            inputs
+        }
+
+        /// Writes the physics' outputs into their value references.
+        pub fn write_outputs(outputs: &Outputs, values: &mut [f64; N_VARIABLES]) {
+            $(write_field!($group [$($field)*] $kind, outputs, values[vr::$constant]);)*
+        }
     };
 }
 
+/// A row's start value: its field in the paper's device, 0 for outputs and time.
+macro_rules! start_value {
+    (param [$($field:tt)*] real) => { Params::PAPER.$($field)* };
+    (param [$($field:tt)*] coded) => { Params::PAPER.$($field)* as u8 as f64 };
+    (input [$($field:tt)*] real) => { Inputs::PAPER.$($field)* };
+    ($group:ident [$($field:tt)*] $kind:ident) => { 0.0 };
+}
+
+/// Reads a row of group `$want` into its typed field; rows of other groups are no-ops.
+macro_rules! read_field {
+    (param, param [$($field:tt)*] real, $to:ident, $value:expr) => { $to.$($field)* = $value; };
+    (param, param [$($field:tt)*] coded, $to:ident, $value:expr) => { $to.$($field)* = Coded::from_code($value)?; };
+    (input, input [$($field:tt)*] real, $to:ident, $value:expr) => { $to.$($field)* = $value; };
+    ($want:ident, $group:ident [$($field:tt)*] $kind:ident, $to:ident, $value:expr) => {};
+}
+
+/// Writes an output row from its typed field; other rows are no-ops.
+macro_rules! write_field {
+    (output [$($field:tt)*] real, $from:ident, $slot:expr) => { $slot = $from.$($field)*; };
+    (output [$($field:tt)*] coded, $from:ident, $slot:expr) => { $slot = $from.$($field)*.code(); };
+    ($group:ident [$($field:tt)*] $kind:ident, $from:ident, $slot:expr) => {};
+}
+
 variable_table! {
-    TIME => Variable {
+    TIME => clock[] real: Variable {
         name: "time",
         causality: Independent,
         variability: Continuous,
@@ -303,30 +437,18 @@ variable_table! {
     // ten times the valve's rated current (10 mA; above it a warning): the torque motor
     // saturates magnetically long before, and a larger command is a unit mistake (5 mA
     // typed as 5 A), not a current this valve can carry.
-    I_REF => input("i_ref", "A", Some("mA"), 0.0, "Coil current command (used when control_mode = current); rated current 10 mA")
+    I_REF => input[i_ref] real: input("i_ref", "A", Some("mA"), "Coil current command (used when control_mode = current); rated current 10 mA")
         .range(Some(-10.0 * VALVE_RATED_CURRENT), Some(10.0 * VALVE_RATED_CURRENT)),
     // Up to 1 kV: far above any coil driver's supply (the paper's is 72 V).
-    V_SUPPLY => input("V_supply", "V", None, 72.0, "Driver supply: the output rails are at +V_supply and -V_supply")
+    V_SUPPLY => input[v_supply] real: input("V_supply", "V", None, "Driver supply: the output rails are at +V_supply and -V_supply")
         .range(Some(0.0), Some(1000.0)),
     // Outputs
-    I_COIL => output("i_coil", "A", Some("mA"), "Torque-motor coil current"),
-    U_DRIVER => output("u_driver", "V", None, "Driver output voltage across coil and sense resistor"),
-    DRIVER_SATURATED => Variable {
-        name: "driver_saturated",
-        causality: Output,
-        variability: Discrete,
-        ty: VarType::Boolean,
-        unit: None,
-        display_unit: None,
-        start: 0.0,
-        min: None,
-        max: None,
-        min_exclusive: false,
-        description: "The driver output is at a supply rail",
-    },
-    X_FLAPPER => output("x_flapper", "m", Some("um"), "Armature/flapper displacement at the nozzles"),
-    X_SPOOL => output("x_spool", "m", Some("mm"), "Main spool displacement"),
-    Q_VALVE => output("Q_valve", "m3/s", Some("L/min"), "No-load valve flow K3*x_spool (the paper's hydraulic-amplifier load flow)"),
+    I_COIL => output[i_coil] real: output("i_coil", "A", Some("mA"), "Torque-motor coil current"),
+    U_DRIVER => output[u_driver] real: output("u_driver", "V", None, "Driver output voltage across coil and sense resistor"),
+    DRIVER_SATURATED => output[driver_saturated] coded: boolean_output("driver_saturated", "The driver output is at a supply rail"),
+    X_FLAPPER => output[x_flapper] real: output("x_flapper", "m", Some("um"), "Armature/flapper displacement at the nozzles"),
+    X_SPOOL => output[x_spool] real: output("x_spool", "m", Some("mm"), "Main spool displacement"),
+    Q_VALVE => output[q_valve] real: output("Q_valve", "m3/s", Some("L/min"), "No-load valve flow K3*x_spool (the paper's hydraulic-amplifier load flow)"),
     // Parameters are fixed (set before initialisation ends) unless marked `.tunable()`:
     // tunable are what a user tunes or varies during a run (controller gains and limits,
     // friction, load mass, leakage): settable in Step Mode, they take effect at the next
@@ -337,171 +459,135 @@ variable_table! {
     // stops, fluid and circuit (a different value is a different device, and a travel or
     // geometry change could leave the state outside the new limits).
     // Structural parameters
-    DRIVER => Variable {
-        name: "driver",
-        causality: Parameter,
-        variability: Fixed,
-        ty: VarType::Enumeration("DriverType"),
-        unit: None,
-        display_unit: None,
-        start: 2.0,
-        min: Some(0.0),
-        max: Some(4.0),
-        min_exclusive: false,
-        description: "Coil driver: 0 ideal_current, 1 voltage, 2 opamp_pi, 3 industrial, 4 hbridge_pid",
-    },
-    CONTROL_MODE => Variable {
-        name: "control_mode",
-        causality: Parameter,
-        variability: Fixed,
-        ty: VarType::Enumeration("ControlMode"),
-        unit: None,
-        display_unit: None,
-        start: 0.0,
-        min: Some(0.0),
-        max: Some(2.0),
-        min_exclusive: false,
-        description: "Command source: 0 current (i_ref), 1 flow loop (Q_ref), 2 position loop (x_ref)",
-    },
+    DRIVER => param[driver] coded: enumeration("driver", &DRIVER_TYPE, "Coil driver topology"),
+    CONTROL_MODE => param[control_mode] coded: enumeration("control_mode", &CONTROL_MODE_TYPE, "Which command drives the coil current"),
     // Driver
-    DRIVER_KP => param("driver.Kp", Some("V/A"), 1.6e5, "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
+    DRIVER_KP => param[opamp.kp] real: param("driver.Kp", Some("V/A"), "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
         .non_negative()
         .tunable(),
-    DRIVER_KI => param("driver.Ki", Some("V/(A.s)"), 5.0e7, "Op-amp PI integral gain (= G*R_s/(R_f*C_f)); default Ki/Kp = R/L cancels the coil pole")
+    DRIVER_KI => param[opamp.ki] real: param("driver.Ki", Some("V/(A.s)"), "Op-amp PI integral gain (= G*R_s/(R_f*C_f)); default Ki/Kp = R/L cancels the coil pole")
         .non_negative()
         .tunable(),
-    DRIVER_V_DROP => param("driver.V_drop", Some("V"), 0.0, "Output stage drop: the output saturates at +-(V_supply - V_drop)")
+    DRIVER_V_DROP => param[opamp_v_drop] real: param("driver.V_drop", Some("V"), "Output stage drop: the output saturates at +-(V_supply - V_drop)")
         .non_negative()
         .tunable(),
-    DRIVER_SLEW_RATE => param("driver.slew_rate", Some("V/s"), 2.0e7, "Op-amp output slew-rate limit (20 V/us)").positive().tunable(),
+    DRIVER_SLEW_RATE => param[opamp.slew_rate] real: param("driver.slew_rate", Some("V/s"), "Op-amp output slew-rate limit (20 V/us)").positive().tunable(),
     // Coil
-    COIL_L => param("coil.L", Some("H"), 3.2, "Torque-motor coil (apparent) inductance").positive(),
-    COIL_R => param("coil.R", Some("Ohm"), 1000.0, "Torque-motor coil resistance").positive(),
-    COIL_R_SENSE => param("coil.R_sense", Some("Ohm"), 0.0, "Current-sense resistor in series with the coil").non_negative(),
-    COIL_K_B => param("coil.K_b", Some("V.s/m"), 0.0, "Back-EMF constant on the flapper velocity (0: already in the apparent inductance)")
+    COIL_L => param[coil.inductance] real: param("coil.L", Some("H"), "Torque-motor coil (apparent) inductance").positive(),
+    COIL_R => param[coil.resistance] real: param("coil.R", Some("Ohm"), "Torque-motor coil resistance").positive(),
+    COIL_R_SENSE => param[coil.r_sense] real: param("coil.R_sense", Some("Ohm"), "Current-sense resistor in series with the coil").non_negative(),
+    COIL_K_B => param[coil.k_backemf] real: param("coil.K_b", Some("V.s/m"), "Back-EMF constant on the flapper velocity (0: already in the apparent inductance)")
         .non_negative(),
     // Valve (Moog 30 linear model)
-    VALVE_K1 => param("valve.K1", Some("N.m/A"), 2.82462, "Torque-motor gain (0.025 in-lb/mA)").positive(),
-    VALVE_KF => param("valve.Kf", Some("N.m/m"), 511.545, "Net stiffness on flapper/armature (115 in-lb/in)").positive(),
-    VALVE_KW => param("valve.Kw", Some("N.m/m"), 74.2853, "Feedback wire stiffness (16.7 in-lb/in)").positive(),
-    VALVE_K2 => param("valve.K2", Some("m2/s"), 0.0967740, "Hydraulic amplifier flow gain (150 in3/s/in)").positive(),
-    VALVE_K3 => param("valve.K3", Some("m2/s"), 0.664515, "Spool/bushing flow gain (1030 in3/s/in)").positive(),
-    VALVE_A_S => param("valve.A_s", Some("m2"), 1.67742e-5, "Spool end area (0.026 in2)").positive(),
-    VALVE_ZETA => param("valve.zeta", None, 0.4, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
-    VALVE_F_N => param("valve.f_n", Some("Hz"), 814.0, "Natural frequency of the first stage").positive(),
+    VALVE_K1 => param[valve.k1] real: param("valve.K1", Some("N.m/A"), "Torque-motor gain (0.025 in-lb/mA)").positive(),
+    VALVE_KF => param[valve.kf] real: param("valve.Kf", Some("N.m/m"), "Net stiffness on flapper/armature (115 in-lb/in)").positive(),
+    VALVE_KW => param[valve.kw] real: param("valve.Kw", Some("N.m/m"), "Feedback wire stiffness (16.7 in-lb/in)").positive(),
+    VALVE_K2 => param[valve.k2] real: param("valve.K2", Some("m2/s"), "Hydraulic amplifier flow gain (150 in3/s/in)").positive(),
+    VALVE_K3 => param[valve.k3] real: param("valve.K3", Some("m2/s"), "Spool/bushing flow gain (1030 in3/s/in)").positive(),
+    VALVE_A_S => param[valve.spool_area] real: param("valve.A_s", Some("m2"), "Spool end area (0.026 in2)").positive(),
+    VALVE_ZETA => param[valve.zeta] real: param("valve.zeta", None, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
+    VALVE_F_N => param[valve.f_n] real: param("valve.f_n", Some("Hz"), "Natural frequency of the first stage").positive(),
     // Industrial linear current amplifier (driver 3): a PI loop like the op-amp driver's
     // but with the slow gains of an off-the-shelf unit. L/Kp = 1.28 ms gives the My-502's
     // 5 ms (2 %) settling; Ki/Kp = R/L cancels the coil pole.
-    INDUSTRIAL_KP => param("industrial.Kp", Some("V/A"), 2500.0, "Industrial amplifier proportional gain").non_negative().tunable(),
-    INDUSTRIAL_KI => param("industrial.Ki", Some("V/(A.s)"), 781250.0, "Industrial amplifier integral gain").non_negative().tunable(),
-    INDUSTRIAL_SLEW_RATE => param("industrial.slew_rate", Some("V/s"), 1.0e6, "Industrial amplifier output slew-rate limit (1 V/us)").positive().tunable(),
+    INDUSTRIAL_KP => param[industrial.kp] real: param("industrial.Kp", Some("V/A"), "Industrial amplifier proportional gain").non_negative().tunable(),
+    INDUSTRIAL_KI => param[industrial.ki] real: param("industrial.Ki", Some("V/(A.s)"), "Industrial amplifier integral gain").non_negative().tunable(),
+    INDUSTRIAL_SLEW_RATE => param[industrial.slew_rate] real: param("industrial.slew_rate", Some("V/s"), "Industrial amplifier output slew-rate limit (1 V/us)").positive().tunable(),
     // H-bridge with PWM and a digital PI current loop (driver 4).
-    HBRIDGE_F_PWM => param("hbridge.f_pwm", Some("Hz"), 20000.0, "PWM switching frequency (bipolar, centre-aligned)")
+    HBRIDGE_F_PWM => param[hbridge.f_pwm] real: param("hbridge.f_pwm", Some("Hz"), "PWM switching frequency (bipolar, centre-aligned)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
-    HBRIDGE_F_SAMPLE => param("hbridge.f_sample", Some("Hz"), 20000.0, "Sampling rate of the digital PI current loop (one-sample computation delay)")
+    HBRIDGE_F_SAMPLE => param[hbridge.f_sample] real: param("hbridge.f_sample", Some("Hz"), "Sampling rate of the digital PI current loop (one-sample computation delay)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
     // With feed-forward and Ki/Kp = R/L, a 5 mA step at 12 V runs at 100 % duty to ~4.2 mA
     // (the supply limits the slope, as on the paper's bench), then the loop closes with
     // L/Kp = 0.36 ms: 1.9 ms settling of the period-averaged current.
-    HBRIDGE_KP => param("hbridge.Kp", Some("V/A"), 9000.0, "Digital PI proportional gain").non_negative().tunable(),
-    HBRIDGE_KI => param("hbridge.Ki", Some("V/(A.s)"), 2812500.0, "Digital PI integral gain").non_negative().tunable(),
-    HBRIDGE_FEEDFORWARD => Variable {
-        name: "hbridge.feedforward",
-        causality: Parameter,
-        variability: Fixed,
-        ty: VarType::Boolean,
-        unit: None,
-        display_unit: None,
-        start: 1.0,
-        min: None,
-        max: None,
-        min_exclusive: false,
-        description: "Add the feed-forward voltage (R + R_sense)*i_cmd to the digital PI output",
-    },
+    HBRIDGE_KP => param[hbridge.kp] real: param("hbridge.Kp", Some("V/A"), "Digital PI proportional gain").non_negative().tunable(),
+    HBRIDGE_KI => param[hbridge.ki] real: param("hbridge.Ki", Some("V/(A.s)"), "Digital PI integral gain").non_negative().tunable(),
+    HBRIDGE_FEEDFORWARD => param[hbridge.feedforward] coded: boolean_param("hbridge.feedforward", "Add the feed-forward voltage (R + R_sense)*i_cmd to the digital PI output"),
     // Optional valve travel limits (the paper's linear model has none).
-    VALVE_X_FLAPPER_MAX => param("valve.x_flapper_max", Some("m"), 0.0, "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
-    VALVE_X_SPOOL_MAX => param("valve.x_spool_max", Some("m"), 0.0, "Spool travel limit, inelastic stop (0: none)").non_negative(),
+    VALVE_X_FLAPPER_MAX => param[valve.x_flapper_max] real: param("valve.x_flapper_max", Some("m"), "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
+    VALVE_X_SPOOL_MAX => param[valve.x_spool_max] real: param("valve.x_spool_max", Some("m"), "Spool travel limit, inelastic stop (0: none)").non_negative(),
     // Cylinder side: inputs and outputs.
     // Up to 1000 bar: beyond the pressure rating of industrial servo hydraulics (the
     // Moog 30 is rated for 3000 psi, 207 bar).
-    P_SUPPLY => input("p_supply", "Pa", Some("bar"), 6.8948e6, "Hydraulic supply pressure, gauge (1000 psi: the valve's rated drop, so the no-load flow is K3*x_spool)")
+    P_SUPPLY => input[p_supply] real: input("p_supply", "Pa", Some("bar"), "Hydraulic supply pressure, gauge (1000 psi: the valve's rated drop, so the no-load flow is K3*x_spool)")
         .range(Some(0.0), Some(1.0e8)),
     // +-100 kN: 72 times the default stall force p_S*A_A (1.39 kN) and 5 times the largest
     // stall force the ranges allow at this bore (1000 bar on 16 mm: 20 kN); a larger force
     // crushes the oil column of any actuator this model describes.
-    F_EXT => input("F_ext", "N", None, 0.0, "External force on the rod, positive in the direction of +x (extension)")
+    F_EXT => input[f_ext] real: input("F_ext", "N", None, "External force on the rod, positive in the direction of +x (extension)")
         .range(Some(-1.0e5), Some(1.0e5)),
     // +-1e-3 m3/s (60 L/min): four times the valve's rated flow (2.53e-4 m3/s, 15 L/min at
     // 10 mA), which the outer loop cannot exceed with its default limit.
-    Q_REF => input("Q_ref", "m3/s", Some("L/min"), 0.0, "Valve flow command (used when control_mode = flow)")
+    Q_REF => input[q_ref] real: input("Q_ref", "m3/s", Some("L/min"), "Valve flow command (used when control_mode = flow)")
         .range(Some(-1.0e-3), Some(1.0e-3)),
     // Half the longest stroke the cylinder.stroke range allows; once the stroke is known
     // (at initialisation) x_ref is also checked against +-cylinder.stroke/2.
-    X_REF => input("x_ref", "m", Some("mm"), 0.0, "Piston position command, 0 = mid-stroke, within +-cylinder.stroke/2 (used when control_mode = position)")
+    X_REF => input[x_ref] real: input("x_ref", "m", Some("mm"), "Piston position command, 0 = mid-stroke, within +-cylinder.stroke/2 (used when control_mode = position)")
         .range(Some(-0.5 * MAX_STROKE), Some(0.5 * MAX_STROKE)),
-    Q_A => output("Q_A", "m3/s", Some("L/min"), "Actual flow into chamber A"),
-    Q_B => output("Q_B", "m3/s", Some("L/min"), "Actual flow out of chamber B"),
-    P_A => output("p_A", "Pa", Some("bar"), "Chamber A (piston side) pressure, gauge"),
-    P_B => output("p_B", "Pa", Some("bar"), "Chamber B (rod side) pressure, gauge"),
-    X_PISTON => output("x_piston", "m", Some("mm"), "Piston position, 0 = mid-stroke, positive = extension"),
-    V_PISTON => output("v_piston", "m/s", None, "Piston velocity"),
-    F_HYDRAULIC => output("F_hydraulic", "N", None, "Hydraulic force p_A*A_A - p_B*A_B"),
+    Q_A => output[q_a] real: output("Q_A", "m3/s", Some("L/min"), "Actual flow into chamber A"),
+    Q_B => output[q_b] real: output("Q_B", "m3/s", Some("L/min"), "Actual flow out of chamber B"),
+    P_A => output[p_a] real: output("p_A", "Pa", Some("bar"), "Chamber A (piston side) pressure, gauge"),
+    P_B => output[p_b] real: output("p_B", "Pa", Some("bar"), "Chamber B (rod side) pressure, gauge"),
+    X_PISTON => output[x_piston] real: output("x_piston", "m", Some("mm"), "Piston position, 0 = mid-stroke, positive = extension"),
+    V_PISTON => output[v_piston] real: output("v_piston", "m/s", None, "Piston velocity"),
+    F_HYDRAULIC => output[f_hydraulic] real: output("F_hydraulic", "N", None, "Hydraulic force p_A*A_A - p_B*A_B"),
     // Cylinder, load and hydraulic fluid.
-    CYLINDER_BORE => param("cylinder.bore", Some("m"), 0.016, "Piston (bore) diameter").positive(),
-    CYLINDER_ROD => param("cylinder.rod", Some("m"), 0.010, "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative(),
-    CYLINDER_STROKE => param("cylinder.stroke", Some("m"), 0.080, "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2")
+    CYLINDER_BORE => param[cylinder.bore] real: param("cylinder.bore", Some("m"), "Piston (bore) diameter").positive(),
+    CYLINDER_ROD => param[cylinder.rod] real: param("cylinder.rod", Some("m"), "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative(),
+    CYLINDER_STROKE => param[cylinder.stroke] real: param("cylinder.stroke", Some("m"), "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2")
         .positive()
         .range(Some(0.0), Some(MAX_STROKE)),
-    CYLINDER_MASS => param("cylinder.mass", Some("kg"), 5.0, "Moving mass of piston, rod and load").positive().tunable(),
-    CYLINDER_BETA => param("cylinder.beta", Some("Pa"), 1.0e9, "Effective bulk modulus of oil, hoses and walls").positive(),
-    CYLINDER_V_DEAD => param("cylinder.V_dead", Some("m3"), 2.0e-6, "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
-    CYLINDER_B_VISCOUS => param("cylinder.b_viscous", Some("N.s/m"), 200.0, "Viscous friction coefficient").non_negative().tunable(),
-    CYLINDER_F_COULOMB => param("cylinder.F_coulomb", Some("N"), 20.0, "Coulomb friction force").non_negative().tunable(),
-    CYLINDER_F_STATIC => param("cylinder.F_static", Some("N"), 30.0, "Breakaway (static) friction force: peak of the Stribeck curve").non_negative().tunable(),
-    CYLINDER_V_STRIBECK => param("cylinder.v_stribeck", Some("m/s"), 0.01, "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive().tunable(),
-    CYLINDER_V_FRICTION_SMOOTH => param("cylinder.v_friction_smooth", Some("m/s"), 1.0e-4, "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive().tunable(),
-    CYLINDER_K_ENDSTOP => param("cylinder.k_endstop", Some("N/m"), 1.0e8, "End-stop contact stiffness beyond +-stroke/2").positive(),
-    CYLINDER_C_ENDSTOP => param("cylinder.c_endstop", Some("N.s/m"), 1.0e4, "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative(),
-    CYLINDER_C_LEAK => param("cylinder.C_leak", Some("m3/(s.Pa)"), 0.0, "Internal leakage coefficient across the piston, A to B").non_negative().tunable(),
-    CYLINDER_C_LEAK_EXTERNAL => param("cylinder.C_leak_external", Some("m3/(s.Pa)"), 0.0, "External leakage coefficient from each chamber to the drain at p_tank").non_negative().tunable(),
-    VALVE_DP_RATED => param("valve.dp_rated", Some("Pa"), 6.8948e6, "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").positive(),
-    VALVE_DP_LAMINAR => param("valve.dp_laminar", Some("Pa"), 1.0e5, "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive(),
-    HYDRAULICS_P_TANK => param("hydraulics.p_tank", Some("Pa"), 0.0, "Tank (return) pressure, gauge").range(Some(-1.01325e5), None),
-    HYDRAULICS_P_CAVITATION => param("hydraulics.p_cavitation", Some("Pa"), -0.9e5, "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it").range(Some(-1.01325e5), None),
-    HYDRAULICS_DP_CAVITATION_BAND => param("hydraulics.dp_cavitation_band", Some("Pa"), 5.0e4, "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero").positive(),
+    CYLINDER_MASS => param[cylinder.mass] real: param("cylinder.mass", Some("kg"), "Moving mass of piston, rod and load").positive().tunable(),
+    CYLINDER_BETA => param[cylinder.beta] real: param("cylinder.beta", Some("Pa"), "Effective bulk modulus of oil, hoses and walls").positive(),
+    CYLINDER_V_DEAD => param[cylinder.v_dead] real: param("cylinder.V_dead", Some("m3"), "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
+    CYLINDER_B_VISCOUS => param[cylinder.b_viscous] real: param("cylinder.b_viscous", Some("N.s/m"), "Viscous friction coefficient").non_negative().tunable(),
+    CYLINDER_F_COULOMB => param[cylinder.f_coulomb] real: param("cylinder.F_coulomb", Some("N"), "Coulomb friction force").non_negative().tunable(),
+    CYLINDER_F_STATIC => param[cylinder.f_static] real: param("cylinder.F_static", Some("N"), "Breakaway (static) friction force: peak of the Stribeck curve").non_negative().tunable(),
+    CYLINDER_V_STRIBECK => param[cylinder.v_stribeck] real: param("cylinder.v_stribeck", Some("m/s"), "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive().tunable(),
+    CYLINDER_V_FRICTION_SMOOTH => param[cylinder.v_friction_smooth] real: param("cylinder.v_friction_smooth", Some("m/s"), "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive().tunable(),
+    CYLINDER_K_ENDSTOP => param[cylinder.k_endstop] real: param("cylinder.k_endstop", Some("N/m"), "End-stop contact stiffness beyond +-stroke/2").positive(),
+    CYLINDER_C_ENDSTOP => param[cylinder.c_endstop] real: param("cylinder.c_endstop", Some("N.s/m"), "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative(),
+    CYLINDER_C_LEAK => param[cylinder.c_leak] real: param("cylinder.C_leak", Some("m3/(s.Pa)"), "Internal leakage coefficient across the piston, A to B").non_negative().tunable(),
+    CYLINDER_C_LEAK_EXTERNAL => param[cylinder.c_leak_external] real: param("cylinder.C_leak_external", Some("m3/(s.Pa)"), "External leakage coefficient from each chamber to the drain at p_tank").non_negative().tunable(),
+    VALVE_DP_RATED => param[valve.dp_rated] real: param("valve.dp_rated", Some("Pa"), "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").positive(),
+    VALVE_DP_LAMINAR => param[valve.dp_laminar] real: param("valve.dp_laminar", Some("Pa"), "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive(),
+    HYDRAULICS_P_TANK => param[cylinder.p_tank] real: param("hydraulics.p_tank", Some("Pa"), "Tank (return) pressure, gauge").range(Some(-1.01325e5), None),
+    HYDRAULICS_P_CAVITATION => param[cylinder.p_cavitation] real: param("hydraulics.p_cavitation", Some("Pa"), "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it").range(Some(-1.01325e5), None),
+    HYDRAULICS_DP_CAVITATION_BAND => param[cylinder.dp_cavitation_band] real: param("hydraulics.dp_cavitation_band", Some("Pa"), "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero").positive(),
     // Outer loops (control_mode 1 flow, 2 position): a digital PID producing the current command.
-    LOOP_F_SAMPLE => param("loop.f_sample", Some("Hz"), 20000.0, "Sampling rate of the outer flow/position PID (the command is held between samples)")
+    LOOP_F_SAMPLE => param[outer_loop.f_sample] real: param("loop.f_sample", Some("Hz"), "Sampling rate of the outer flow/position PID (the command is held between samples)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
-    LOOP_I_MAX => param("loop.i_max", Some("A"), VALVE_RATED_CURRENT, "Limit of the current command from the outer loops (rated current)").positive().tunable(),
+    LOOP_I_MAX => param[outer_loop.i_max] real: param("loop.i_max", Some("A"), "Limit of the current command from the outer loops (rated current)").positive().tunable(),
     // Flow defaults, a gentle P on top of the exact feed-forward like the paper's untuned
     // loop: a 2e-4 m3/s step settles in 3.37 ms at 72 V and 6.08 ms at 10 V (180 %; paper
     // 3.3 ms, 6 ms, 181 %). With the feed-forward exact, P alone leaves no steady-state
     // error; an integral adds a slow tail (the area it collects in the transient) and winds
     // up against the 10 V supply limit, where the coil current can only rise with L/R.
-    FLOW_KP => param("flow.Kp", Some("A.s/m3"), 2.0, "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)").tunable(),
-    FLOW_KI => param("flow.Ki", Some("A/m3"), 0.0, "Flow PID integral gain").tunable(),
-    FLOW_KD => param("flow.Kd", Some("A.s2/m3"), 0.0, "Flow PID derivative gain").tunable(),
+    FLOW_KP => param[outer_loop.flow[0]] real: param("flow.Kp", Some("A.s/m3"), "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)").tunable(),
+    FLOW_KI => param[outer_loop.flow[1]] real: param("flow.Ki", Some("A/m3"), "Flow PID integral gain").tunable(),
+    FLOW_KD => param[outer_loop.flow[2]] real: param("flow.Kd", Some("A.s2/m3"), "Flow PID derivative gain").tunable(),
     // Position defaults: P only (1 mA per mm). The valve-controlled cylinder integrates flow,
     // and a critically centred valve holds a constant load with zero flow only at null spool,
     // so P alone has zero steady-state error; Ki is for leakage or a valve offset. Derivative
     // action excites the hydraulic resonance at these gains.
-    POSITION_KP => param("position.Kp", Some("A/m"), 1.0, "Position PID proportional gain (on x_ref - x_piston)").tunable(),
-    POSITION_KI => param("position.Ki", Some("A/(m.s)"), 0.0, "Position PID integral gain").tunable(),
-    POSITION_KD => param("position.Kd", Some("A.s/m"), 0.0, "Position PID derivative gain").tunable(),
+    POSITION_KP => param[outer_loop.position[0]] real: param("position.Kp", Some("A/m"), "Position PID proportional gain (on x_ref - x_piston)").tunable(),
+    POSITION_KI => param[outer_loop.position[1]] real: param("position.Ki", Some("A/(m.s)"), "Position PID integral gain").tunable(),
+    POSITION_KD => param[outer_loop.position[2]] real: param("position.Kd", Some("A.s/m"), "Position PID derivative gain").tunable(),
     // Relief valves of the cylinder (appended: references never move). One per chamber, to
     // tank; 80 bar is 16 % above the 1000 psi supply, so they stay shut in normal operation
     // (docs/model.md) and cap what braking a fast piston with the valve does to the chambers.
-    RELIEF_P_CRACK => param("relief.p_crack", Some("Pa"), 8.0e6, "Cracking pressure of the chamber relief valves, above p_tank (0: no relief valves); must exceed p_supply - p_tank")
+    RELIEF_P_CRACK => param[cylinder.relief_p_crack] real: param("relief.p_crack", Some("Pa"), "Cracking pressure of the chamber relief valves, above p_tank (0: no relief valves); must exceed p_supply - p_tank")
         .non_negative(),
-    RELIEF_DP_OVERRIDE => param("relief.dp_override", Some("Pa"), 1.0e6, "Pressure override: rise above the cracking pressure at which a relief valve passes its rated flow").positive(),
-    RELIEF_Q_RATED => param("relief.Q_rated", Some("m3/s"), 4.0e-4, "Rated flow of each relief valve, reached at relief.p_crack + relief.dp_override").positive(),
+    RELIEF_DP_OVERRIDE => param[cylinder.relief_dp_override] real: param("relief.dp_override", Some("Pa"), "Pressure override: rise above the cracking pressure at which a relief valve passes its rated flow").positive(),
+    RELIEF_Q_RATED => param[cylinder.relief_q_rated] real: param("relief.Q_rated", Some("m3/s"), "Rated flow of each relief valve, reached at relief.p_crack + relief.dp_override").positive(),
     // Accuracy against speed (appended). 1e-7 keeps every output within ~1e-6 of its range
     // of a tight reference (docs/benchmark.md); looser settings are for hardware-in-the-loop
     // budgets, tighter ones for references. Past 1e-3 the error control means nothing.
-    SOLVER_RTOL => param("solver.rtol", None, 1.0e-7, "Relative tolerance of the cylinder's Rosenbrock integrator (errors weighed against rtol*max(|y|, 1 MPa / 10 mm / 0.1 m/s)); driver, coil and valve are exact at any setting")
+    SOLVER_RTOL => param[solver_rtol] real: param("solver.rtol", None, "Relative tolerance of the cylinder's Rosenbrock integrator (errors weighed against rtol*max(|y|, 1 MPa / 10 mm / 0.1 m/s)); driver, coil and valve are exact at any setting")
         .range(Some(1.0e-12), Some(1.0e-3)),
 }
 
@@ -541,7 +627,7 @@ pub fn interface_token() -> String {
     }
     for e in ENUMERATIONS {
         feed(e.name.as_bytes());
-        for (value, name, _) in e.items {
+        for (value, name, _) in e.valued_items() {
             feed(&value.to_le_bytes());
             feed(name.as_bytes());
         }
@@ -570,6 +656,137 @@ mod tests {
         assert_eq!(VARIABLES[vr::COIL_K_B].name, "coil.K_b");
         assert_eq!(VARIABLES[vr::POSITION_KD].name, "position.Kd");
         assert_eq!(N_VARIABLES, 80);
+    }
+
+    /// Users' scripts and saved states hold value references: every variable keeps its row.
+    #[test]
+    fn value_references_never_move() {
+        let names: Vec<&str> = VARIABLES.iter().map(|v| v.name).collect();
+        let pinned = [
+            "time",
+            "i_ref",
+            "V_supply",
+            "i_coil",
+            "u_driver",
+            "driver_saturated",
+            "x_flapper",
+            "x_spool",
+            "Q_valve",
+            "driver",
+            "control_mode",
+            "driver.Kp",
+            "driver.Ki",
+            "driver.V_drop",
+            "driver.slew_rate",
+            "coil.L",
+            "coil.R",
+            "coil.R_sense",
+            "coil.K_b",
+            "valve.K1",
+            "valve.Kf",
+            "valve.Kw",
+            "valve.K2",
+            "valve.K3",
+            "valve.A_s",
+            "valve.zeta",
+            "valve.f_n",
+            "industrial.Kp",
+            "industrial.Ki",
+            "industrial.slew_rate",
+            "hbridge.f_pwm",
+            "hbridge.f_sample",
+            "hbridge.Kp",
+            "hbridge.Ki",
+            "hbridge.feedforward",
+            "valve.x_flapper_max",
+            "valve.x_spool_max",
+            "p_supply",
+            "F_ext",
+            "Q_ref",
+            "x_ref",
+            "Q_A",
+            "Q_B",
+            "p_A",
+            "p_B",
+            "x_piston",
+            "v_piston",
+            "F_hydraulic",
+            "cylinder.bore",
+            "cylinder.rod",
+            "cylinder.stroke",
+            "cylinder.mass",
+            "cylinder.beta",
+            "cylinder.V_dead",
+            "cylinder.b_viscous",
+            "cylinder.F_coulomb",
+            "cylinder.F_static",
+            "cylinder.v_stribeck",
+            "cylinder.v_friction_smooth",
+            "cylinder.k_endstop",
+            "cylinder.c_endstop",
+            "cylinder.C_leak",
+            "cylinder.C_leak_external",
+            "valve.dp_rated",
+            "valve.dp_laminar",
+            "hydraulics.p_tank",
+            "hydraulics.p_cavitation",
+            "hydraulics.dp_cavitation_band",
+            "loop.f_sample",
+            "loop.i_max",
+            "flow.Kp",
+            "flow.Ki",
+            "flow.Kd",
+            "position.Kp",
+            "position.Ki",
+            "position.Kd",
+            "relief.p_crack",
+            "relief.dp_override",
+            "relief.Q_rated",
+            "solver.rtol",
+        ];
+        assert_eq!(names[..pinned.len()], pinned);
+    }
+
+    #[test]
+    fn enumerations_list_the_physics_items_in_their_order() {
+        assert_eq!(DRIVER_TYPE.items.len(), DriverKind::ALL.len());
+        assert_eq!(CONTROL_MODE_TYPE.items.len(), ControlMode::ALL.len());
+        for (kind, (name, _)) in DriverKind::ALL.iter().zip(DRIVER_TYPE.items) {
+            assert_eq!(DriverKind::from_code(kind.code()), Ok(*kind), "{name}");
+        }
+        assert_eq!(DriverKind::ALL[4], DriverKind::HBridge);
+        assert_eq!(DRIVER_TYPE.items[4].0, "hbridge_pid");
+        assert_eq!(ControlMode::ALL[2], ControlMode::Position);
+        assert_eq!(CONTROL_MODE_TYPE.items[2].0, "position");
+        assert!(DriverKind::from_code(5.0).unwrap_err().contains("driver = 5"));
+        assert!(ControlMode::from_code(-1.0).is_err());
+        assert_eq!(VARIABLES[vr::DRIVER].max, Some(4.0));
+    }
+
+    #[test]
+    fn the_binding_reads_and_writes_the_typed_fields() {
+        assert_eq!(params(&start_values()), Ok(Params::PAPER));
+        assert_eq!(inputs(&start_values()), Inputs::PAPER);
+        let mut values = start_values();
+        values[vr::DRIVER] = 3.0;
+        values[vr::INDUSTRIAL_KP] = 1234.0;
+        values[vr::POSITION_KD] = 0.5;
+        values[vr::HBRIDGE_FEEDFORWARD] = 0.0;
+        values[vr::X_REF] = 0.01;
+        let p = params(&values).unwrap();
+        assert_eq!(p.driver, DriverKind::Industrial);
+        assert_eq!(p.industrial.kp, 1234.0);
+        assert_eq!(p.outer_loop.position, [1.0, 0.0, 0.5]);
+        assert!(!p.hbridge.feedforward);
+        assert_eq!(inputs(&values).x_ref, 0.01);
+        let outputs =
+            Outputs { driver_saturated: true, p_b: 7.0, f_hydraulic: 9.0, ..Outputs::default() };
+        write_outputs(&outputs, &mut values);
+        assert_eq!(
+            (values[vr::DRIVER_SATURATED], values[vr::P_B], values[vr::F_HYDRAULIC]),
+            (1.0, 7.0, 9.0)
+        );
+        assert_eq!(values[vr::P_A], 0.0);
     }
 
     #[test]

@@ -591,8 +591,8 @@ fn fmi3_null_pointers_and_counts_name_the_argument() {
 // ---------------------------------------------------------------- bounded time
 
 fn huge_steps_return_in_bounded_time<F: Api>() {
-    let drivers = ENUMERATIONS.iter().find(|e| e.name == "DriverType").expect("DriverType").items;
-    for &(value, name, _) in drivers {
+    let drivers = ENUMERATIONS.iter().find(|e| e.name == "DriverType").expect("DriverType");
+    for (value, name, _) in drivers.valued_items() {
         for h in [1e6, 1e3, 1.0] {
             let f = F::create(name);
             if f.set_enum(vr::DRIVER, value) != OK {
@@ -812,7 +812,7 @@ fn a_refused_call_leaves_the_instance_in_its_state<F: Api>() {
 
 fn hbridge_pid() -> i64 {
     let drivers = ENUMERATIONS.iter().find(|e| e.name == "DriverType").expect("DriverType");
-    drivers.items.iter().find(|i| i.1 == "hbridge_pid").expect("hbridge_pid").0
+    drivers.valued_items().find(|i| i.1 == "hbridge_pid").expect("hbridge_pid").0
 }
 
 // ---------------------------------------------------------------- input ranges and warnings

@@ -67,7 +67,7 @@ pub fn documentation_html(figures: &[String]) -> String {
     html += &format!("<h2>The paper</h2>\n<p>{}</p>\n", escape(PAPER_CITATION));
     for e in ENUMERATIONS {
         html += &format!("<h2>{}</h2>\n<p>{}</p>\n<ul>\n", escape(e.name), escape(e.description));
-        for (value, name, description) in e.items {
+        for (value, name, description) in e.valued_items() {
             html += &format!("<li>{value} <code>{name}</code>: {}</li>\n", escape(description));
         }
         html += "</ul>\n";

@@ -224,7 +224,7 @@ pub(crate) fn model_description() -> ModelDescription {
                 .map(|e| SimpleType {
                     name: e.name,
                     description: e.description,
-                    enumeration: EnumerationType { items: items(e.items) },
+                    enumeration: EnumerationType { items: items(e) },
                 })
                 .collect(),
         },

@@ -215,7 +215,7 @@ pub(crate) fn model_description() -> ModelDescription {
                 .map(|e| EnumerationType {
                     name: e.name,
                     description: e.description,
-                    items: items(e.items),
+                    items: items(e),
                 })
                 .collect(),
         },

@@ -8,7 +8,7 @@
 use dependencies::dependencies;
 use ehsv_actuator::units::{Unit, UNITS};
 use ehsv_actuator::variables::{
-    Causality, Initial, VarType, Variability, Variable, ENUMERATIONS, VARIABLES,
+    Causality, Enumeration, Initial, VarType, Variability, Variable, ENUMERATIONS, VARIABLES,
 };
 use serde::Serialize;
 
@@ -173,8 +173,11 @@ struct Item {
     description: &'static str,
 }
 
-fn items(items: &'static [(i64, &'static str, &'static str)]) -> Vec<Item> {
-    items.iter().map(|&(value, name, description)| Item { name, value, description }).collect()
+fn items(enumeration: &'static Enumeration) -> Vec<Item> {
+    enumeration
+        .valued_items()
+        .map(|(value, name, description)| Item { name, value, description })
+        .collect()
 }
 
 /// `<LogCategories>`: same element in FMI 2 and FMI 3, rendered from the one list the C

@@ -46,7 +46,7 @@ pub fn enumerations_markdown() -> String {
     let mut md = String::new();
     for e in ENUMERATIONS {
         md += &format!("**{}**: {}\n\n", e.name, e.description);
-        for (value, name, description) in e.items {
+        for (value, name, description) in e.valued_items() {
             md += &format!("- {value} `{name}`: {description}\n");
         }
         md.push('\n');
@@ -63,10 +63,9 @@ fn start_text(v: &Variable) -> String {
         VarType::Boolean => (v.start != 0.0).to_string(),
         VarType::Enumeration(type_name) => {
             let value = v.start as i64;
-            let item =
-                enumeration(type_name).and_then(|e| e.items.iter().find(|(n, _, _)| *n == value));
+            let item = enumeration(type_name).and_then(|e| e.items.get(value as usize));
             match item {
-                Some((_, name, _)) => format!("{value} ({name})"),
+                Some((name, _)) => format!("{value} ({name})"),
                 None => value.to_string(),
             }
         }

@@ -32,7 +32,7 @@ mod valve;
 
 pub use params::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
-    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, ValveParams,
+    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, ValveParams, VALVE_RATED_CURRENT,
 };
 
 use cylinder::{CylinderParams, CylinderState};

@@ -1,7 +1,12 @@
 //! The typed boundary of the physics: parameters, inputs and outputs in SI, one field per
 //! variable of the table (the [`crate::model::Model`] fills and reads them).
 
-/// Coil driver topology (`driver`).
+/// The Moog 30's rated coil current (A): the valve's flow gain is specified up to it, the
+/// outer loops limit their command to it by default, and a current command beyond it is
+/// reported with a warning.
+pub const VALVE_RATED_CURRENT: f64 = 0.01;
+
+/// Coil driver topology.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DriverKind {
     IdealCurrent,
@@ -12,17 +17,14 @@ pub enum DriverKind {
 }
 
 impl DriverKind {
-    /// From the enumeration value of the table.
-    pub fn from_value(value: f64) -> Result<DriverKind, String> {
-        match value as i64 {
-            0 => Ok(DriverKind::IdealCurrent),
-            1 => Ok(DriverKind::Voltage),
-            2 => Ok(DriverKind::OpampPi),
-            3 => Ok(DriverKind::Industrial),
-            4 => Ok(DriverKind::HBridge),
-            other => Err(format!("driver = {other} is not available (0 to 4)")),
-        }
-    }
+    /// Every topology, in the order of their codes.
+    pub const ALL: [DriverKind; 5] = [
+        DriverKind::IdealCurrent,
+        DriverKind::Voltage,
+        DriverKind::OpampPi,
+        DriverKind::Industrial,
+        DriverKind::HBridge,
+    ];
 }
 
 /// Which command drives the coil current (`control_mode`).
@@ -34,15 +36,9 @@ pub enum ControlMode {
 }
 
 impl ControlMode {
-    /// From the enumeration value of the table.
-    pub fn from_value(value: f64) -> Result<ControlMode, String> {
-        match value as i64 {
-            0 => Ok(ControlMode::Current),
-            1 => Ok(ControlMode::Flow),
-            2 => Ok(ControlMode::Position),
-            other => Err(format!("control_mode = {other} is not available (0, 1 or 2)")),
-        }
-    }
+    /// Every command source, in the order of their codes.
+    pub const ALL: [ControlMode; 3] =
+        [ControlMode::Current, ControlMode::Flow, ControlMode::Position];
 }
 
 /// A continuous PI current loop with a slew-rate limited output (op-amp or industrial).
@@ -259,7 +255,7 @@ impl Params {
         },
         outer_loop: OuterLoopParams {
             f_sample: 20000.0,
-            i_max: 0.01,
+            i_max: VALVE_RATED_CURRENT,
             flow: [2.0, 0.0, 0.0],
             position: [1.0, 0.0, 0.0],
         },

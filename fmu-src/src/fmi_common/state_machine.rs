@@ -121,7 +121,7 @@ pub(crate) enum Call {
     Unsupported,
 }
 
-use crate::variables::{Causality, Variability};
+use crate::variables::Variable;
 use State::{Error, InitializationMode as Init, Instantiated, StepMode as Step, Terminated};
 
 const ANY: States = States::of(&State::ALL);
@@ -153,18 +153,18 @@ impl Call {
     }
 }
 
-/// The second half of the table for setters: the states in which a variable of this
-/// causality and variability may be set (FMI 2.0 and 3.0 agree for the kinds used here).
-/// Inputs and tunable parameters: also in Step Mode (FMI 2 StepComplete), taking effect
-/// at the next communication point; fixed parameters: only until initialisation ends.
-/// Outputs and the independent variable: never (`None`).
-pub(crate) const fn settable_in(causality: Causality, variability: Variability) -> Option<States> {
-    match (causality, variability) {
-        (Causality::Parameter, Variability::Fixed) => Some(States::of(&[Instantiated, Init])),
-        (Causality::Parameter | Causality::Input, _) => {
-            Some(States::of(&[Instantiated, Init, Step]))
-        }
-        (Causality::Output | Causality::Independent, _) => None,
+/// The second half of the table for setters: the states in which `variable` may be set
+/// (FMI 2.0 and 3.0 agree for the kinds used here), from the variable's own rule
+/// ([`Variable::may_be_set`]) before and after initialisation: inputs and tunable
+/// parameters also in Step Mode (FMI 2 StepComplete), taking effect at the next
+/// communication point; fixed parameters only until initialisation ends; outputs and the
+/// independent variable never (`None`).
+pub(crate) const fn settable_in(variable: &Variable) -> Option<States> {
+    match (variable.may_be_set(false), variable.may_be_set(true)) {
+        (true, true) => Some(States::of(&[Instantiated, Init, Step])),
+        (true, false) => Some(States::of(&[Instantiated, Init])),
+        (false, true) => Some(States::of(&[Step])),
+        (false, false) => None,
     }
 }
 
@@ -221,18 +221,19 @@ mod tests {
 
     #[test]
     fn tunable_parameters_and_inputs_are_settable_in_step_mode_fixed_ones_not() {
-        let states = |c, v| -> Vec<State> {
-            let set = settable_in(c, v).expect("settable");
+        use crate::variables::{vr, VARIABLES};
+        let states = |index: usize| -> Vec<State> {
+            let set = settable_in(&VARIABLES[index]).expect("settable");
             State::ALL.into_iter().filter(|s| set.contains(*s)).collect()
         };
-        use Causality::{Input, Output, Parameter};
-        assert_eq!(states(Parameter, Variability::Tunable), [Instantiated, Init, Step]);
-        assert_eq!(states(Input, Variability::Continuous), [Instantiated, Init, Step]);
-        assert_eq!(states(Parameter, Variability::Fixed), [Instantiated, Init]);
-        assert_eq!(settable_in(Output, Variability::Continuous), None);
+        assert_eq!(states(vr::POSITION_KP), [Instantiated, Init, Step]);
+        assert_eq!(states(vr::I_REF), [Instantiated, Init, Step]);
+        assert_eq!(states(vr::COIL_L), [Instantiated, Init]);
+        assert_eq!(settable_in(&VARIABLES[vr::X_PISTON]), None);
+        assert_eq!(settable_in(&VARIABLES[vr::TIME]), None);
         // Each settable state is one where the setters are allowed at all.
-        for v in crate::variables::VARIABLES.iter() {
-            if let Some(set) = settable_in(v.causality, v.variability) {
+        for v in VARIABLES.iter() {
+            if let Some(set) = settable_in(v) {
                 for s in State::ALL.into_iter().filter(|s| set.contains(*s)) {
                     assert!(Call::SetValues.allowed().contains(s), "{} in {s:?}", v.name);
                 }

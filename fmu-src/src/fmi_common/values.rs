@@ -117,7 +117,7 @@ impl Instance {
     #[inline]
     fn check_settable(&self, index: usize) -> Result<(), Status> {
         let var = &VARIABLES[index];
-        match settable_in(var.causality, var.variability) {
+        match settable_in(var) {
             Some(allowed) if allowed.contains(self.state) => Ok(()),
             _ => self.refuse_setting(index),
         }
@@ -128,7 +128,7 @@ impl Instance {
     #[inline(never)]
     fn refuse_setting(&self, index: usize) -> Result<(), Status> {
         let var = &VARIABLES[index];
-        let Some(allowed) = settable_in(var.causality, var.variability) else {
+        let Some(allowed) = settable_in(var) else {
             let kind = if var.causality == Causality::Output {
                 "an output"
             } else {

@@ -59,11 +59,10 @@ pub fn enum_value(enumeration: &str, item: &str) -> f64 {
         .find(|e| e.name == enumeration)
         .unwrap_or_else(|| panic!("no enumeration {enumeration}"));
     let (value, _, _) = e
-        .items
-        .iter()
+        .valued_items()
         .find(|(_, name, _)| *name == item)
         .unwrap_or_else(|| panic!("{enumeration} has no item {item}"));
-    *value as f64
+    value as f64
 }
 
 /// A `driver` setting by name.

@@ -71,7 +71,7 @@ pub fn run(
     for (k, v) in values.iter_mut().enumerate() {
         *v = start.get(k).unwrap();
     }
-    let model = WholeModel::new(&ehsv_actuator::model::params(&values)?)?;
+    let model = WholeModel::new(&ehsv_actuator::variables::params(&values)?)?;
     let rail = model.rail(values[vr::V_SUPPLY]);
     let mut y0 = [0.0; NY];
     y0[I] = values[vr::I_COIL];
