@@ -63,6 +63,8 @@ pub struct fmi2CallbackFunctions {
 }
 
 const V: Version = Version::Fmi2;
+/// The model behind this FMU's instances.
+type Actuator = crate::model::Model;
 
 // ---------------------------------------------------------------- common functions
 
@@ -105,7 +107,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
             });
             // SAFETY: string contracts forwarded.
             unsafe {
-                instantiate(
+                instantiate::<Actuator>(
                     V,
                     "fmi2Instantiate",
                     instanceName,
@@ -127,7 +129,7 @@ pub unsafe extern "C" fn fmi2Instantiate(
 #[no_mangle]
 pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
     // SAFETY: forwarded contract.
-    unsafe { free_instance(c, V, "fmi2FreeInstance") }
+    unsafe { free_instance::<Actuator>(c, V, "fmi2FreeInstance") }
 }
 
 fmi_functions! {

@@ -62,6 +62,8 @@ pub type fmi3LockPreemptionCallback = Option<unsafe extern "C" fn()>;
 pub type fmi3UnlockPreemptionCallback = Option<unsafe extern "C" fn()>;
 
 const V: Version = Version::Fmi3;
+/// The model behind this FMU's instances.
+type Actuator = crate::model::Model;
 
 /// Logs a refused instantiation of an interface this FMU does not provide.
 ///
@@ -158,7 +160,7 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
                 .then(|| "eventModeUsed = true is not supported: EhsvActuator has no event mode (hasEventMode = false)".to_string());
             // SAFETY: string contracts forwarded.
             unsafe {
-                instantiate(
+                instantiate::<Actuator>(
                     V,
                     "fmi3InstantiateCoSimulation",
                     instanceName,
@@ -208,7 +210,7 @@ pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
 #[no_mangle]
 pub unsafe extern "C" fn fmi3FreeInstance(instance: fmi3Instance) {
     // SAFETY: forwarded contract.
-    unsafe { free_instance(instance, V, "fmi3FreeInstance") }
+    unsafe { free_instance::<Actuator>(instance, V, "fmi3FreeInstance") }
 }
 
 fmi_functions! {

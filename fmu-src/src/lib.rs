@@ -10,6 +10,7 @@
 //!   [`fmi_common`], which holds the call-sequence table and the Error rules
 //!   ([`fmi_common::state_machine`]).
 
+pub mod contract;
 pub mod fmi2;
 pub mod fmi3;
 pub mod fmi_common;

@@ -1,17 +1,21 @@
-//! A model instance as the FMI layer sees it: values by value reference, initialise,
-//! step, reset, and a self-checking byte form of the whole state.
+//! The actuator as a model instance: values by value reference, initialise, step, reset,
+//! and a self-checking byte form of the whole state; it fills in the FMI layer's
+//! [`ModelContract`].
 //!
-//! This is the typed boundary: the value array (indexed by value reference) is turned into
-//! [`Params`] and [`Inputs`] here, and the physics' [`Outputs`] are written back here. The
-//! physics never sees a value reference or a variable name.
+//! The value array (indexed by value reference) is turned into the physics' typed
+//! parameters and inputs, and its outputs written back, by the bindings the variable table
+//! generates ([`crate::variables::params`], [`crate::variables::inputs`],
+//! [`crate::variables::write_outputs`]). The physics never sees a value reference or a
+//! variable name.
 
 use std::cell::RefCell;
 
+use crate::contract::{communication_point_tolerance, ModelContract};
 use crate::physics::bytes::{frame, unframe, ByteReader};
 use crate::physics::{ControlMode, DriverKind, Params, Physics, StepEvents, Work};
 use crate::variables::{
-    inputs, params, start_values, vr, write_outputs, Causality, Coded, Variability, N_VARIABLES,
-    VALVE_RATED_CURRENT, VARIABLES,
+    inputs, params, start_values, vr, write_outputs, Causality, Coded, Variability, Variable,
+    N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
 };
 
 /// The communication step of the default experiment (modelDescription.xml), for which
@@ -522,17 +526,91 @@ enum StepFault {
     NoAdvance,
 }
 
-/// How far an importer's communication point may be from the FMU time: the rounding of
-/// its own `t + h` sums (4 ulps of t) plus a millionth of the step, so never more than a
-/// small fraction of the step however large t is (an epoch start time of 1.7e9 s has
-/// ulps of 0.24 us).
-pub fn communication_point_tolerance(time: f64, step: f64) -> f64 {
-    let abs = time.abs();
-    let ulp = f64::from_bits(abs.to_bits() + 1) - abs;
-    4.0 * ulp + 1e-6 * step
+const MAGIC: &[u8; 8] = b"EHSVST02";
+
+impl ModelContract for Model {
+    const VARIABLES: &'static [Variable] = &VARIABLES;
+    const N_WARNINGS: usize = InputWarning::ALL.len();
+
+    fn interface_token() -> String {
+        crate::variables::interface_token()
+    }
+    fn start() -> Self {
+        Model::new()
+    }
+    fn time(&self) -> f64 {
+        self.time
+    }
+    fn is_initialized(&self) -> bool {
+        self.initialized
+    }
+    fn set_start_time(&mut self, start_time: f64) -> Result<(), String> {
+        Model::set_start_time(self, start_time)
+    }
+    fn set_values<I>(&mut self, changes: I) -> Result<(), String>
+    where
+        I: IntoIterator<Item = (usize, f64)>,
+        I::IntoIter: Clone,
+    {
+        self.set_all(changes)
+    }
+    fn reader(&self) -> impl Fn(usize) -> f64 + '_ {
+        Model::reader(self)
+    }
+    fn initialize(&mut self) -> Result<(), String> {
+        Model::initialize(self)
+    }
+    fn check_step(&self, current_time: f64, step: f64) -> Result<(), String> {
+        Model::check_step(self, current_time, step)
+    }
+    fn step(
+        &mut self,
+        current_time: f64,
+        step: f64,
+        log_event: Option<&mut dyn FnMut(&str)>,
+    ) -> Result<(), String> {
+        let events = self.do_checked_step(current_time, step)?;
+        if let Some(log) = log_event {
+            if events != StepEvents::default() {
+                log_step_events(&events, current_time, step, log);
+            }
+        }
+        Ok(())
+    }
+    fn to_bytes(&self) -> Vec<u8> {
+        Model::to_bytes(self)
+    }
+    fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
+        Model::from_bytes(bytes)
+    }
+    fn warnings(&self) -> u32 {
+        self.input_warnings().iter().enumerate().map(|(i, &holds)| (holds as u32) << i).sum()
+    }
+    fn warning_text(&self, index: usize) -> String {
+        self.input_warning_text(InputWarning::ALL[index])
+    }
 }
 
-const MAGIC: &[u8; 8] = b"EHSVST02";
+/// The log lines of the events inside the step `[t, t + h]`.
+#[cold]
+fn log_step_events(events: &StepEvents, t: f64, h: f64, log: &mut dyn FnMut(&str)) {
+    if events.rail_entered + events.rail_left > 0 {
+        log(&format!(
+            "step [{t}, {}]: driver output reached a supply rail {} time(s), left it {} time(s)",
+            t + h,
+            events.rail_entered,
+            events.rail_left
+        ));
+    }
+    for (opened, chamber) in events.relief_opened.iter().zip(["A", "B"]) {
+        if *opened {
+            log(&format!(
+                "step [{t}, {}]: relief valve of chamber {chamber} opened (p_{chamber} above relief.p_crack)",
+                t + h
+            ));
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests {

@@ -7,6 +7,7 @@ use std::ffi::{c_char, CStr};
 
 use super::instance::Instance;
 use super::logging::Status;
+use crate::contract::ModelContract;
 
 /// Reads a C string argument; `None` for NULL.
 ///
@@ -17,7 +18,7 @@ pub(crate) unsafe fn opt_str<'a>(p: *const c_char) -> Option<&'a CStr> {
     (!p.is_null()).then(|| unsafe { CStr::from_ptr(p) })
 }
 
-impl Instance {
+impl<M: ModelContract> Instance<M> {
     /// `n` elements at `ptr` as a slice; NULL with `n > 0`, misalignment or an
     /// impossible size → Error naming the argument.
     ///

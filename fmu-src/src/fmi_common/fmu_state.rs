@@ -7,13 +7,13 @@ use std::ffi::c_void;
 use super::instance::Instance;
 use super::logging::Status;
 use super::state_machine::State::{self, StepMode, Terminated};
-use crate::model::Model;
-use crate::variables::{Causality, VARIABLES};
+use crate::contract::ModelContract;
+use crate::variables::Causality;
 
 /// An FMU state behind `fmi2FMUstate` / `fmi3FMUState`: everything needed to continue
 /// (FMI 2.0.4 2.1.8, FMI 3.0): the model, the FMI state it was taken in, the stop time.
-pub(super) struct SavedState {
-    model: Model,
+pub(super) struct SavedState<M> {
+    model: M,
     mode: State,
     stop_time: Option<f64>,
 }
@@ -21,7 +21,7 @@ pub(super) struct SavedState {
 /// Format and version of the serialized FMU state (the model's own bytes are inside).
 const FMU_STATE_MAGIC: &[u8; 8] = b"EHSVFS01";
 
-impl SavedState {
+impl<M: ModelContract> SavedState<M> {
     /// mode | stop time defined (0/1) | stop time (0 if undefined) | model bytes, framed
     /// and checksummed as the model's bytes are.
     fn to_bytes(&self) -> Vec<u8> {
@@ -32,7 +32,7 @@ impl SavedState {
     }
 
     /// Inverse of [`SavedState::to_bytes`]; refuses what the FMU would never have written.
-    fn from_bytes(bytes: &[u8]) -> Result<SavedState, String> {
+    fn from_bytes(bytes: &[u8]) -> Result<SavedState<M>, String> {
         let body = crate::physics::bytes::unframe(FMU_STATE_MAGIC, bytes)?;
         let (head, model) = body.split_at_checked(10).ok_or("state is truncated")?;
         let mode = State::from_code(head[0])
@@ -43,7 +43,7 @@ impl SavedState {
             1 if stop.is_finite() => Some(stop),
             flag => return Err(format!("state has an invalid stop time ({flag}, {stop})")),
         };
-        let model = Model::from_bytes(model)?;
+        let model = M::from_bytes(model)?;
         check_restored(&model)?;
         if model.is_initialized() != matches!(mode, StepMode | Terminated) {
             return Err(format!(
@@ -56,10 +56,10 @@ impl SavedState {
     }
 }
 
-impl Instance {
+impl<M: ModelContract> Instance<M> {
     /// The FMU state behind a pointer the importer hands back, if this instance made it
     /// and it was not freed; anything else is refused without being read.
-    fn saved(&self, ptr: *mut c_void) -> Result<&SavedState, Status> {
+    fn saved(&self, ptr: *mut c_void) -> Result<&SavedState<M>, Status> {
         match self.fmu_states.get(&(ptr as usize)) {
             Some(saved) => Ok(saved),
             None => self.error(
@@ -77,13 +77,13 @@ impl Instance {
     unsafe fn store_state(
         &mut self,
         state: *mut *mut c_void,
-        saved: SavedState,
+        saved: SavedState<M>,
     ) -> Result<Status, Status> {
         // SAFETY: forwarded contract.
         let slot = unsafe { self.out("FMUState", state)? };
         if slot.is_null() {
             let mut boxed = Box::new(saved);
-            let address: *mut SavedState = &mut *boxed;
+            let address: *mut SavedState<M> = &mut *boxed;
             self.fmu_states.insert(address as usize, boxed);
             *slot = address.cast();
         } else {
@@ -194,12 +194,13 @@ impl Instance {
 
 /// What the checksum cannot vouch for in a well-formed frame built elsewhere: the time
 /// is finite, parameters and inputs pass the checks of the setters, outputs are finite.
-fn check_restored(model: &Model) -> Result<(), String> {
+fn check_restored<M: ModelContract>(model: &M) -> Result<(), String> {
     if !model.time().is_finite() {
         return Err(format!("the state's time {} is not finite", model.time()));
     }
-    for (index, var) in VARIABLES.iter().enumerate() {
-        let value = model.get(index).unwrap_or(f64::NAN);
+    let read = model.reader();
+    for (index, var) in M::VARIABLES.iter().enumerate() {
+        let value = read(index);
         match var.causality {
             Causality::Parameter | Causality::Input => var.check(value)?,
             Causality::Output if !value.is_finite() => {

@@ -10,13 +10,13 @@ use super::arguments::opt_str;
 use super::fmu_state::SavedState;
 use super::logging::{Logger, Status, LOG_CATEGORIES, LOG_ERROR, N_CATEGORIES};
 use super::state_machine::{Call, State, Version};
-use crate::model::{InputWarning, Model};
+use crate::contract::ModelContract;
 
 const INSTANCE_MAGIC: u64 = 0x4548_5356_494e_5354; // "EHSVINST"
 
 /// One FMU instance, behind the `fmi2Component` / `fmi3Instance` pointer.
 #[repr(C)]
-pub(crate) struct Instance {
+pub(crate) struct Instance<M: ModelContract> {
     /// First field, so a foreign or freed pointer is likely to be recognised.
     magic: u64,
     pub(super) version: Version,
@@ -25,15 +25,16 @@ pub(crate) struct Instance {
     pub(super) categories: [bool; N_CATEGORIES],
     /// The exported function being executed (prefix of error messages).
     pub(super) func: &'static str,
-    pub(crate) model: Model,
+    pub(crate) model: M,
     pub(crate) state: State,
     pub(crate) stop_time: Option<f64>,
     /// The FMU states this instance handed out and the importer has not freed, by the
     /// address the importer holds: FreeInstance frees what is left, and a pointer that is
     /// not in here (freed, foreign, garbage) is refused without being read.
-    pub(super) fmu_states: HashMap<usize, Box<SavedState>>,
-    /// Which [`InputWarning`]s held at the last doStep: each is reported when it begins.
-    pub(super) warned: [bool; InputWarning::ALL.len()],
+    pub(super) fmu_states: HashMap<usize, Box<SavedState<M>>>,
+    /// Which of the model's input conditions held at the last doStep (bit i: condition
+    /// i): each is reported when it begins.
+    pub(super) warned: u32,
 }
 
 fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
@@ -59,7 +60,7 @@ pub(crate) fn guarded<R>(f: impl FnOnce() -> R, on_panic: impl FnOnce(String) ->
 ///
 /// # Safety
 /// `name` and `token` are NULL or NUL-terminated strings.
-pub(crate) unsafe fn instantiate(
+pub(crate) unsafe fn instantiate<M: ModelContract>(
     version: Version,
     func: &'static str,
     name: *const c_char,
@@ -80,7 +81,7 @@ pub(crate) unsafe fn instantiate(
         Some(n) if !n.is_empty() => n,
         _ => return refuse("instanceName must be a non-empty string".into()),
     };
-    let expected = crate::variables::interface_token();
+    let expected = M::interface_token();
     let what = if version == Version::Fmi2 { "fmuGUID" } else { "instantiationToken" };
     match token.map(|t| t.to_string_lossy()) {
         None => return refuse(format!("instance '{shown}': {what} is NULL (expected {expected})")),
@@ -102,11 +103,11 @@ pub(crate) unsafe fn instantiate(
         logger,
         categories: [logging_on; N_CATEGORIES],
         func,
-        model: Model::new(),
+        model: M::start(),
         state: State::Instantiated,
         stop_time: None,
         fmu_states: HashMap::new(),
-        warned: [false; InputWarning::ALL.len()],
+        warned: 0,
     });
     inst.trace(|| format!("{func}: instance '{shown}' created"));
     Box::into_raw(inst).cast()
@@ -116,8 +117,8 @@ pub(crate) unsafe fn instantiate(
 ///
 /// # Safety
 /// `ptr` is NULL or was returned by our `Instantiate` and not yet freed.
-unsafe fn instance_ptr(ptr: *mut c_void) -> Option<*mut Instance> {
-    let p = ptr.cast::<Instance>();
+unsafe fn instance_ptr<M: ModelContract>(ptr: *mut c_void) -> Option<*mut Instance<M>> {
+    let p = ptr.cast::<Instance<M>>();
     // SAFETY: non-NULL `p` points to an Instance (contract); `magic` is its first field.
     (!p.is_null() && p.is_aligned() && unsafe { (*p).magic } == INSTANCE_MAGIC).then_some(p)
 }
@@ -131,15 +132,15 @@ unsafe fn instance_ptr(ptr: *mut c_void) -> Option<*mut Instance> {
 /// # Safety
 /// `ptr` is NULL or a live instance from our `Instantiate`; nothing else may use the
 /// instance during the call (FMI: one instance is called from one thread at a time).
-pub(crate) unsafe fn with_instance(
+pub(crate) unsafe fn with_instance<M: ModelContract>(
     ptr: *mut c_void,
     version: Version,
     func: &'static str,
     call: Call,
-    f: impl FnOnce(&mut Instance) -> Result<Status, Status>,
+    f: impl FnOnce(&mut Instance<M>) -> Result<Status, Status>,
 ) -> Status {
     // SAFETY: forwarded contract.
-    let Some(p) = (unsafe { instance_ptr(ptr) }) else { return Status::Error };
+    let Some(p) = (unsafe { instance_ptr::<M>(ptr) }) else { return Status::Error };
     guarded(
         || {
             // SAFETY: `p` is a live instance, exclusively ours for this call.
@@ -182,9 +183,13 @@ pub(crate) unsafe fn with_instance(
 ///
 /// # Safety
 /// As [`with_instance`]; `ptr` is not used afterwards.
-pub(crate) unsafe fn free_instance(ptr: *mut c_void, version: Version, func: &'static str) {
+pub(crate) unsafe fn free_instance<M: ModelContract>(
+    ptr: *mut c_void,
+    version: Version,
+    func: &'static str,
+) {
     // SAFETY: forwarded contract.
-    let Some(p) = (unsafe { instance_ptr(ptr) }) else { return };
+    let Some(p) = (unsafe { instance_ptr::<M>(ptr) }) else { return };
     guarded(
         || {
             // SAFETY: `p` came from Box::into_raw in `instantiate` and is freed once.
@@ -226,7 +231,7 @@ mod tests {
         let token = CString::new(crate::variables::interface_token()).unwrap();
         // SAFETY: valid C strings and callback.
         let inst = unsafe {
-            instantiate(
+            instantiate::<crate::model::Model>(
                 Version::Fmi3,
                 "fmi3InstantiateCoSimulation",
                 c"p".as_ptr(),
@@ -239,9 +244,13 @@ mod tests {
         assert!(!inst.is_null());
         // SAFETY: `inst` is live.
         let status = unsafe {
-            with_instance(inst, Version::Fmi3, "fmi3Boom", Call::GetValues, |_| {
-                panic!("boom {}", 42)
-            })
+            with_instance::<crate::model::Model>(
+                inst,
+                Version::Fmi3,
+                "fmi3Boom",
+                Call::GetValues,
+                |_| panic!("boom {}", 42),
+            )
         };
         assert_eq!(status, Status::Error);
         assert!(
@@ -254,14 +263,27 @@ mod tests {
         );
         // SAFETY: still live.
         let status = unsafe {
-            with_instance(inst, Version::Fmi3, "fmi3Terminate", Call::Terminate, |_| Ok(Status::OK))
+            with_instance::<crate::model::Model>(
+                inst,
+                Version::Fmi3,
+                "fmi3Terminate",
+                Call::Terminate,
+                |_| Ok(Status::OK),
+            )
         };
         assert_eq!(status, Status::Error, "the Error state refuses what is not a way out");
         // SAFETY: still live.
-        let status =
-            unsafe { with_instance(inst, Version::Fmi3, "fmi3Reset", Call::Reset, |i| i.reset()) };
+        let status = unsafe {
+            with_instance::<crate::model::Model>(
+                inst,
+                Version::Fmi3,
+                "fmi3Reset",
+                Call::Reset,
+                |i| i.reset(),
+            )
+        };
         assert_eq!(status, Status::OK);
         // SAFETY: freed once.
-        unsafe { free_instance(inst, Version::Fmi3, "fmi3FreeInstance") };
+        unsafe { free_instance::<crate::model::Model>(inst, Version::Fmi3, "fmi3FreeInstance") };
     }
 }

@@ -5,10 +5,9 @@
 use super::instance::Instance;
 use super::logging::{Status, LOG_CATEGORIES, LOG_EVENTS, LOG_WARNING};
 use super::state_machine::State::{self, InitializationMode, Instantiated, StepMode, Terminated};
-use crate::model::{communication_point_tolerance, InputWarning};
-use crate::physics::StepEvents;
+use crate::contract::{communication_point_tolerance, ModelContract};
 
-impl Instance {
+impl<M: ModelContract> Instance<M> {
     /// Start (and optional stop) time of the experiment.
     pub(crate) fn setup_experiment(
         &mut self,
@@ -53,10 +52,10 @@ impl Instance {
 
     /// Back to the state after instantiation (logging settings are kept).
     pub(crate) fn reset(&mut self) -> Result<Status, Status> {
-        self.model.reset();
+        self.model = M::start();
         self.state = Instantiated;
         self.stop_time = None;
-        self.warned = [false; InputWarning::ALL.len()];
+        self.warned = 0;
         Ok(Status::OK)
     }
 
@@ -75,10 +74,16 @@ impl Instance {
                 ));
             }
         }
-        let conditions = self.model.input_warnings();
-        match self.model.do_checked_step(t, h) {
-            Ok(events) => {
-                self.log_events(t, h, events);
+        let conditions = self.model.warnings();
+        let logs_events = self.enabled(LOG_EVENTS);
+        let mut events = Vec::new();
+        let mut collect = |line: &str| events.push(line.to_owned());
+        let log_event = logs_events.then_some(&mut collect as &mut dyn FnMut(&str));
+        match self.model.step(t, h, log_event) {
+            Ok(()) => {
+                for line in &events {
+                    self.log(Status::OK, LOG_EVENTS, line);
+                }
                 Ok(self.warn_about_inputs(t, conditions))
             }
             Err(e) => {
@@ -93,54 +98,24 @@ impl Instance {
 
     /// Warning (and one logStatusWarning line each) for the input conditions that began
     /// with this step; OK while none began (a lasting condition is not repeated).
-    fn warn_about_inputs(&mut self, t: f64, conditions: [bool; InputWarning::ALL.len()]) -> Status {
-        let mut status = Status::OK;
-        let log = self.enabled(LOG_WARNING);
-        for ((warning, holds), warned) in
-            InputWarning::ALL.into_iter().zip(conditions).zip(self.warned.iter_mut())
-        {
-            if holds && !*warned {
-                status = Status::Warning;
-                if log {
-                    let text = self.model.input_warning_text(warning);
-                    let message = format!("{}: step from {t}: {text}", self.func);
-                    self.logger.emit(
-                        &self.name,
-                        Status::Warning,
-                        LOG_CATEGORIES[LOG_WARNING].0,
-                        &message,
-                    );
-                }
-            }
-            *warned = holds;
+    fn warn_about_inputs(&mut self, t: f64, conditions: u32) -> Status {
+        let began = conditions & !self.warned;
+        self.warned = conditions;
+        if began == 0 {
+            return Status::OK;
         }
-        status
-    }
-
-    fn log_events(&self, t: f64, h: f64, events: StepEvents) {
-        if !self.enabled(LOG_EVENTS) || events == StepEvents::default() {
-            return;
-        }
-        if events.rail_entered + events.rail_left > 0 {
-            self.log(
-                Status::OK,
-                LOG_EVENTS,
-                &format!(
-                    "step [{t}, {}]: driver output reached a supply rail {} time(s), left it {} time(s)",
-                    t + h,
-                    events.rail_entered,
-                    events.rail_left
-                ),
-            );
-        }
-        for (opened, chamber) in events.relief_opened.iter().zip(["A", "B"]) {
-            if *opened {
-                let message = format!(
-                    "step [{t}, {}]: relief valve of chamber {chamber} opened (p_{chamber} above relief.p_crack)",
-                    t + h
+        if self.enabled(LOG_WARNING) {
+            for index in (0..M::N_WARNINGS).filter(|i| began & (1 << i) != 0) {
+                let text = self.model.warning_text(index);
+                let message = format!("{}: step from {t}: {text}", self.func);
+                self.logger.emit(
+                    &self.name,
+                    Status::Warning,
+                    LOG_CATEGORIES[LOG_WARNING].0,
+                    &message,
                 );
-                self.log(Status::OK, LOG_EVENTS, &message);
             }
         }
+        Status::Warning
     }
 }

@@ -6,6 +6,7 @@ use std::ffi::{c_char, c_int, c_void, CStr, CString};
 
 use super::arguments::opt_str;
 use super::instance::Instance;
+use crate::contract::ModelContract;
 
 /// Log categories, `(name, description)`: the one list the C API accepts in
 /// `SetDebugLogging` and both modelDescription.xml files declare.
@@ -84,7 +85,7 @@ impl Logger {
     }
 }
 
-impl Instance {
+impl<M: ModelContract> Instance<M> {
     pub(super) fn enabled(&self, category: usize) -> bool {
         self.categories[category] || self.categories[LOG_ALL]
     }

@@ -22,7 +22,7 @@ macro_rules! fmi_functions {
             // SAFETY: the caller's contract, forwarded; `with_instance` checks the instance
             // pointer, the body checks every other pointer it reads.
             unsafe {
-                $crate::fmi_common::with_instance(
+                $crate::fmi_common::with_instance::<Actuator>(
                     $instance,
                     V,
                     stringify!($name),

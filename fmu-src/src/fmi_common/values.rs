@@ -8,7 +8,8 @@ use std::ffi::c_int;
 use super::instance::Instance;
 use super::logging::Status;
 use super::state_machine::{settable_in, Version};
-use crate::variables::{Causality, VarType, Variability, VARIABLES};
+use crate::contract::ModelContract;
+use crate::variables::{Causality, VarType, Variability};
 
 /// Conversions between a C value type and the model's `f64`, and which variable
 /// types the accessor serves. One zero-sized type per FMI getter/setter family.
@@ -89,11 +90,11 @@ fn type_label(ty: VarType, version: Version) -> String {
     }
 }
 
-impl Instance {
+impl<M: ModelContract> Instance<M> {
     /// The index of value reference `vr` if it names a variable of a type the accessor serves.
     #[inline]
     fn resolve<A: Access>(&self, vr: u32) -> Result<usize, Status> {
-        match VARIABLES.get(vr as usize) {
+        match M::VARIABLES.get(vr as usize) {
             Some(var) if A::accepts(var.ty) => Ok(vr as usize),
             _ => self.refuse_reference(vr, A::NAME),
         }
@@ -102,7 +103,7 @@ impl Instance {
     /// Error for a value reference that is unknown or not of the accessor's type.
     #[cold]
     fn refuse_reference<T>(&self, vr: u32, accessor: &str) -> Result<T, Status> {
-        let Some(var) = VARIABLES.get(vr as usize) else {
+        let Some(var) = M::VARIABLES.get(vr as usize) else {
             return self.error(&format!("unknown value reference {vr}"));
         };
         self.error(&format!(
@@ -116,7 +117,7 @@ impl Instance {
     /// [`settable_in`].)
     #[inline]
     fn check_settable(&self, index: usize) -> Result<(), Status> {
-        let var = &VARIABLES[index];
+        let var = &M::VARIABLES[index];
         match settable_in(var) {
             Some(allowed) if allowed.contains(self.state) => Ok(()),
             _ => self.refuse_setting(index),
@@ -127,7 +128,7 @@ impl Instance {
     #[cold]
     #[inline(never)]
     fn refuse_setting(&self, index: usize) -> Result<(), Status> {
-        let var = &VARIABLES[index];
+        let var = &M::VARIABLES[index];
         let Some(allowed) = settable_in(var) else {
             let kind = if var.causality == Causality::Output {
                 "an output"
@@ -207,8 +208,9 @@ impl Instance {
             self.check_settable(index)?;
         }
         // All or nothing; tunable parameters set in Step Mode rebuild the physics here.
-        let result =
-            self.model.set_all(vrs.iter().zip(vals).map(|(&vr, &c)| (vr as usize, A::from_c(c))));
+        let result = self
+            .model
+            .set_values(vrs.iter().zip(vals).map(|(&vr, &c)| (vr as usize, A::from_c(c))));
         match result {
             Ok(()) => Ok(Status::OK),
             Err(e) => self.error(&e),
