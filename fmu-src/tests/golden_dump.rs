@@ -11,6 +11,8 @@ use ehsv_actuator::variables::{vr, N_VARIABLES};
 use scenario::{control_mode, driver};
 
 const H: f64 = 1e-4;
+/// The variables that existed when the digests were taken (value references never move).
+const DIGESTED_VARIABLES: usize = 80;
 const STEPS: usize = 600;
 
 struct Digest(u64);
@@ -21,11 +23,18 @@ impl Digest {
             self.0 = (self.0 ^ b as u64).wrapping_mul(0x100000001b3);
         }
     }
+    /// The values of the variables the digests were first taken over, and the physics'
+    /// part of the state bytes (what follows the value array), so that appending a
+    /// variable leaves them as they were.
     fn feed_model(&mut self, m: &Model) {
-        for index in 0..N_VARIABLES {
+        for index in 0..DIGESTED_VARIABLES {
             self.feed(&m.get(index).unwrap().to_le_bytes());
         }
-        self.feed(&m.to_bytes());
+        let bytes = m.to_bytes();
+        // Frame: magic (8) | length (8) | body | checksum (8); body: count (4) | initialised
+        // (1) | time (8) | values (8 each) | the physics.
+        let physics_start = 16 + 4 + 1 + 8 + 8 * N_VARIABLES;
+        self.feed(&bytes[physics_start..bytes.len() - 8]);
     }
 }
 
@@ -151,15 +160,15 @@ fn scenarios() -> Vec<(&'static str, u64)> {
 
 /// The digests of [`scenarios`], as the model computes them today.
 const EXPECTED: [(&str, u64); 9] = [
-    ("current_step", 0x9a89d5c6a630dbc3),
-    ("square_100Hz", 0xd1e3a5b3cb03c1ef),
-    ("sine_20Hz", 0x488d92d156a789d9),
-    ("position_touchdown", 0x91168b8f8cfb4757),
-    ("stand_under_load", 0x572a704db2448e86),
-    ("flow_square", 0x50ff66cec970591e),
-    ("hbridge_square", 0x62a6b6a77c9b09a7),
-    ("voltage_travel_stops_cavitation", 0x217fa783e004b4c1),
-    ("industrial_retune_restore", 0xf62c430a22dd5d79),
+    ("current_step", 0x54def0c0abaaea61),
+    ("square_100Hz", 0x9b2ba61a1732822b),
+    ("sine_20Hz", 0x333db6309d0efb61),
+    ("position_touchdown", 0xe258790e392c115e),
+    ("stand_under_load", 0x218d5f12c1583ec6),
+    ("flow_square", 0x2251ca7cf3c300e5),
+    ("hbridge_square", 0xaaba08d42f2add55),
+    ("voltage_travel_stops_cavitation", 0x472b009bd2f33797),
+    ("industrial_retune_restore", 0x5903259ba15e8d4b),
 ];
 
 #[test]
