@@ -179,8 +179,10 @@ impl Physics {
         }
     }
 
-    /// Continuous evolution over `span` seconds with state events (driver mode changes);
-    /// `whole`: the span is a whole communication step (no time event cut it).
+    /// Continuous evolution over `span_total` seconds with state events (driver mode
+    /// changes); `whole`: the span is a whole communication step (no time event cut it).
+    /// Each mode runs until an event or the segment's end ([`Physics::propagate_mode`]),
+    /// then the mode after the event is chosen ([`Physics::switch_mode`]).
     fn evolve(
         &mut self,
         span_total: f64,
@@ -188,170 +190,285 @@ impl Physics {
         inputs: &Held,
         events: &mut StepEvents,
     ) -> Result<(), String> {
-        let mut z = self.z;
-        let mut done = 0.0;
-        let mut switches = 0;
-        // Guards that fired without changing the mode: passed, ignored for this segment.
-        let mut passed: u8 = 0;
-        // A driver mode change leaves the spool's position, rate and acceleration continuous,
-        // so the cylinder may take the piece up to an event together with the piece after
-        // it: one Rosenbrock call instead of two. Only a short one (a command step's
-        // slewing): the jerk jumps at the event, which the merged piece's quintic cannot
-        // follow (merging every piece put square_20Hz 3.2e-6 of Q_A's range off an
-        // independent integration at 1e-3 s steps, 1.8e-7 this way). Not with travel
-        // stops, whose impacts break the path. (start, duration)
-        let merge = !valve::has_stops(&self.params);
-        let mut pending: Option<(Vector, f64)> = None;
-        // After a slew from the segment's start, the next mode's start pulled back to it
-        // ([`slew_end`]): its sub-step then ends where the whole segment's propagator takes it.
-        let segment_start = z;
-        let mut pulled_back: Option<Vector> = None;
-        'modes: while done < span_total {
-            let span = span_total - done;
-            let sys = current_system(&self.params, &self.active, &self.systems, self.mode);
-            // Between PWM edges by Taylor series, otherwise with a cached propagator; either
-            // way no sub-step longer than a piece of spool path may be. A slew that ends
-            // inside the first sub-step (a command step's: within a microsecond) is searched
-            // at once, and the propagator of its span would never be applied (on a cache
-            // miss, an exponential for nothing): Taylor series serve if it lasts after all,
-            // on sub-steps they cover in one piece (others, and absurd parameters, go through
-            // the propagator's checks).
-            let key = self.propagator_key();
-            let pieces = spool_path_pieces(span, self.params.wn);
-            let first = span / pieces as f64;
-            let brief_slew = first * sys.radius <= 1.0
-                && driver::slew_time(&self.params, self.mode, &z).is_some_and(|t| t < first);
-            // The end of the rest of the segment in one sub-step, if it is pulled back.
-            let mut whole_segment_end = None;
-            if let Some(start) = pulled_back.take().filter(|_| pieces == 1) {
-                let whole = self.cache.get(key, sys, span_total, true, 1)?;
-                if whole.substeps == 1 && whole.has_matrix() {
-                    let mut end = whole.apply(sys, &start);
-                    driver::project_onto(&self.params, &self.digital, &mut end, self.mode);
-                    whole_segment_end = Some(end);
-                }
+        let mut run = SegmentRun {
+            z: self.z,
+            done: 0.0,
+            switches: 0,
+            passed: 0,
+            merge: !valve::has_stops(&self.params),
+            pending: None,
+            segment_start: self.z,
+            pulled_back: None,
+        };
+        while run.done < span_total {
+            match self.propagate_mode(&mut run, span_total, whole, inputs)? {
+                Some(event) => self.switch_mode(&mut run, &event, events)?,
+                None => break,
             }
-            let propagator = if whole_segment_end.is_some() {
-                // One sub-step, never applied: `whole_segment_end` is its end.
-                Propagator::taylor_only(sys, span, 1)
-            } else if self.mode == Mode::Switched
-                || brief_slew
-                || (done > 0.0 && first * sys.radius <= ONE_OFF_TAYLOR)
-            {
-                Propagator::taylor_only(sys, span, pieces)
-            } else {
-                self.cache.get(key, sys, span, whole && done == 0.0, pieces)?
-            };
-            let (substeps, h) = (propagator.substeps, propagator.h);
-            for k in 0..substeps {
-                let settled = (key, h.to_bits(), z);
-                let at_fixed_point = self.fixed_point == Some(settled);
-                let propagate = |z: &Vector| {
-                    if let Some(end) = whole_segment_end {
-                        return end;
-                    }
-                    let mut next = if propagator.has_matrix() && at_fixed_point {
-                        *z
-                    } else {
-                        propagator.apply(sys, z)
-                    };
-                    driver::project_onto(&self.params, &self.digital, &mut next, self.mode);
-                    next
-                };
-                // A guard whose slope already reaches zero inside the sub-step (a command
-                // step's slewing ends within nanoseconds): search at once, without first
-                // propagating over a sub-step that the event will cut. A state that its
-                // propagator maps onto itself crosses nothing: no prediction needed.
-                let mut guards = (!(at_fixed_point && propagator.has_matrix()))
-                    .then(|| GuardsAt::new(sys, &z, passed));
-                let predicted = guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing());
-                let imminent = predicted < h
-                    && (sys.closed_form_search(passed)
-                        || guards.as_ref().is_some_and(|g| g.crossing_imminent(sys, &z, h)));
-                let next = (!imminent).then(|| propagate(&z));
-                let search = match next {
-                    None => true,
-                    // A stable system that returns to its state bit for bit is at rest: no
-                    // guard can have crossed on the way.
-                    Some(next) if next == z => {
-                        if propagator.has_matrix() {
-                            self.fixed_point = Some(settled);
-                        }
-                        false
-                    }
-                    Some(next) => {
-                        let guards = guards.get_or_insert_with(|| GuardsAt::new(sys, &z, passed));
-                        may_cross(sys, guards, &next, h)
-                    }
-                };
-                if search {
-                    self.work.guard_locations += 1;
-                    let guards = guards.get_or_insert_with(|| GuardsAt::new(sys, &z, passed));
-                    if let Some((tau, guard, at)) = locate_event(sys, &z, h, guards, predicted) {
-                        let (z0, d) = pending.take().map_or((z, tau), |(z0, d)| (z0, d + tau));
-                        if merge && d <= MERGE_SPAN {
-                            pending = Some((z0, d));
-                        } else {
-                            self.cylinder.drive(
-                                sys,
-                                &self.params.cylinder,
-                                &mut self.work,
-                                (&z0, &at, d),
-                                inputs,
-                            )?;
-                        }
-                        let from_segment_start = done == 0.0 && k == 0 && switches == 0;
-                        z = at;
-                        done += k as f64 * h + tau;
-                        let before = self.mode;
-                        let changed = self.settle(&mut z);
-                        if from_segment_start && merge {
-                            pulled_back = slew_end::exit(&self.slew_exits, before, self.mode)
-                                .and_then(|exit| {
-                                    let to = &self.systems[self.mode.index()];
-                                    let mut start =
-                                        slew_end::pulled_back(to, exit, &segment_start, tau)?;
-                                    // The new mode's projection at the switch (rounding).
-                                    start[U] += z[U] - at[U];
-                                    Some(start)
-                                });
-                        }
-                        driver::count_switch(events, before, self.mode);
-                        passed = if changed { 0 } else { passed | 1 << guard };
-                        switches += 1;
-                        if switches > MAX_EVENTS_PER_STEP {
-                            return Err(format!(
-                                "driver switched mode more than {MAX_EVENTS_PER_STEP} times in one step (chattering); step refused"
-                            ));
-                        }
-                        continue 'modes;
-                    }
-                }
-                let next = next.unwrap_or_else(|| propagate(&z));
-                let (z0, d) = pending.take().map_or((z, h), |(z0, d)| (z0, d + h));
-                self.cylinder.drive(
-                    sys,
-                    &self.params.cylinder,
-                    &mut self.work,
-                    (&z0, &next, d),
-                    inputs,
-                )?;
-                z = next;
-            }
-            break;
         }
-        if let Some((z0, d)) = pending {
+        if let Some((z0, d)) = run.pending {
             // The segment ended on an event.
             self.cylinder.drive(
                 &self.systems[self.mode.index()],
                 &self.params.cylinder,
                 &mut self.work,
-                (&z0, &z, d),
+                (&z0, &run.z, d),
                 inputs,
             )?;
         }
-        self.z = z;
+        self.z = run.z;
         Ok(())
+    }
+
+    /// Propagates the current mode from `run`'s state over the rest of the segment, sub-step
+    /// by sub-step, the cylinder following along each piece of spool path; stops at the first
+    /// event (returned, the cylinder driven up to it or its piece left pending).
+    fn propagate_mode(
+        &mut self,
+        run: &mut SegmentRun,
+        span_total: f64,
+        whole: bool,
+        inputs: &Held,
+    ) -> Result<Option<ModeEvent>, String> {
+        let span = span_total - run.done;
+        let sys = current_system(&self.params, &self.active, &self.systems, self.mode);
+        // Between PWM edges by Taylor series, otherwise with a cached propagator; either
+        // way no sub-step longer than a piece of spool path may be. A slew that ends
+        // inside the first sub-step (a command step's: within a microsecond) is searched
+        // at once, and the propagator of its span would never be applied (on a cache
+        // miss, an exponential for nothing): Taylor series serve if it lasts after all,
+        // on sub-steps they cover in one piece (others, and absurd parameters, go through
+        // the propagator's checks).
+        let key = self.propagator_key();
+        let pieces = spool_path_pieces(span, self.params.wn);
+        let first = span / pieces as f64;
+        let brief_slew = first * sys.radius <= 1.0
+            && driver::slew_time(&self.params, self.mode, &run.z).is_some_and(|t| t < first);
+        // The end of the rest of the segment in one sub-step, if it is pulled back.
+        let mut whole_segment_end = None;
+        if let Some(start) = run.pulled_back.take().filter(|_| pieces == 1) {
+            let whole = self.cache.get(key, sys, span_total, true, 1)?;
+            if whole.substeps == 1 && whole.has_matrix() {
+                let mut end = whole.apply(sys, &start);
+                driver::project_onto(&self.params, &self.digital, &mut end, self.mode);
+                whole_segment_end = Some(end);
+            }
+        }
+        let propagator = if whole_segment_end.is_some() {
+            // One sub-step, never applied: `whole_segment_end` is its end.
+            Propagator::taylor_only(sys, span, 1)
+        } else if self.mode == Mode::Switched
+            || brief_slew
+            || (run.done > 0.0 && first * sys.radius <= ONE_OFF_TAYLOR)
+        {
+            Propagator::taylor_only(sys, span, pieces)
+        } else {
+            self.cache.get(key, sys, span, whole && run.done == 0.0, pieces)?
+        };
+        let mode_span = ModeSpan {
+            sys,
+            propagator,
+            whole_segment_end,
+            key,
+            c: &self.params,
+            digital: &self.digital,
+            mode: self.mode,
+        };
+        let h = mode_span.propagator.h;
+        for k in 0..mode_span.propagator.substeps {
+            let end =
+                substep(&mode_span, &run.z, run.passed, &mut self.fixed_point, &mut self.work);
+            let cylinder = (&mut self.cylinder, &mut self.work, &self.params.cylinder);
+            match end {
+                SubstepEnd::Reached(next) => {
+                    drive_piece(cylinder, sys, run, (&next, h), false, inputs)?;
+                    run.z = next;
+                }
+                SubstepEnd::Event { tau, guard, at } => {
+                    drive_piece(cylinder, sys, run, (&at, tau), run.merge, inputs)?;
+                    return Ok(Some(ModeEvent { k, h, tau, guard, at }));
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// Takes the segment onto the mode after `event`: settles the state there, pulls the new
+    /// mode's start back to the segment's start after a slew from it ([`slew_end`]), counts
+    /// the switch; refuses chattering.
+    fn switch_mode(
+        &mut self,
+        run: &mut SegmentRun,
+        event: &ModeEvent,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        let from_segment_start = run.done == 0.0 && event.k == 0 && run.switches == 0;
+        run.z = event.at;
+        run.done += event.k as f64 * event.h + event.tau;
+        let before = self.mode;
+        let changed = self.settle(&mut run.z);
+        if from_segment_start && run.merge {
+            run.pulled_back =
+                slew_end::exit(&self.slew_exits, before, self.mode).and_then(|exit| {
+                    let to = &self.systems[self.mode.index()];
+                    let mut start = slew_end::pulled_back(to, exit, &run.segment_start, event.tau)?;
+                    // The new mode's projection at the switch (rounding).
+                    start[U] += run.z[U] - event.at[U];
+                    Some(start)
+                });
+        }
+        driver::count_switch(events, before, self.mode);
+        run.passed = if changed { 0 } else { run.passed | 1 << event.guard };
+        run.switches += 1;
+        if run.switches > MAX_EVENTS_PER_STEP {
+            return Err(format!(
+                "driver switched mode more than {MAX_EVENTS_PER_STEP} times in one step (chattering); step refused"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// How far the evolution of one segment has come ([`Physics::evolve`]).
+struct SegmentRun {
+    /// The state reached.
+    z: Vector,
+    /// Time since the segment's start (s).
+    done: f64,
+    /// Driver mode switches so far.
+    switches: u32,
+    /// Guards that fired without changing the mode: passed, ignored for this segment.
+    passed: u8,
+    /// A driver mode change leaves the spool's position, rate and acceleration continuous,
+    /// so the cylinder may take the piece up to an event together with the piece after
+    /// it: one Rosenbrock call instead of two. Only a short one (a command step's
+    /// slewing): the jerk jumps at the event, which the merged piece's quintic cannot
+    /// follow (merging every piece put square_20Hz 3.2e-6 of Q_A's range off an
+    /// independent integration at 1e-3 s steps, 1.8e-7 this way). Not with travel
+    /// stops, whose impacts break the path.
+    merge: bool,
+    /// The piece the cylinder has yet to take: (start, duration).
+    pending: Option<(Vector, f64)>,
+    /// After a slew from the segment's start, the next mode's start pulled back to it
+    /// ([`slew_end`]): its sub-step then ends where the whole segment's propagator takes it.
+    segment_start: Vector,
+    pulled_back: Option<Vector>,
+}
+
+/// A state event inside sub-step `k` (of `h`) of a mode: `tau` into it, guard `guard`
+/// fired, the state there `at`.
+struct ModeEvent {
+    k: usize,
+    h: f64,
+    tau: f64,
+    guard: usize,
+    at: Vector,
+}
+
+/// A mode's propagation over the rest of a segment: its system and sub-step propagator.
+struct ModeSpan<'a> {
+    sys: &'a ModeSystem,
+    propagator: Propagator<'a>,
+    /// The end of the one sub-step, when the mode's start was pulled back ([`slew_end`]).
+    whole_segment_end: Option<Vector>,
+    /// The propagator cache's name for the (mode, stops) pair.
+    key: usize,
+    c: &'a Coefficients,
+    digital: &'a Digital,
+    mode: Mode,
+}
+
+impl ModeSpan<'_> {
+    /// One sub-step from `z`, put on the mode's manifold; `at_fixed_point`: the propagator
+    /// maps `z` onto itself.
+    #[inline]
+    fn propagate(&self, z: &Vector, at_fixed_point: bool) -> Vector {
+        if let Some(end) = self.whole_segment_end {
+            return end;
+        }
+        let mut next = if self.propagator.has_matrix() && at_fixed_point {
+            *z
+        } else {
+            self.propagator.apply(self.sys, z)
+        };
+        driver::project_onto(self.c, self.digital, &mut next, self.mode);
+        next
+    }
+}
+
+/// Where a sub-step ends: its end, or the first state event inside it.
+enum SubstepEnd {
+    Reached(Vector),
+    Event { tau: f64, guard: usize, at: Vector },
+}
+
+/// One sub-step of `span`'s mode from `z`, with its state events located (`passed`:
+/// guards ignored). `fixed_point` is [`Physics`]'s cache of a state its propagator maps
+/// onto itself.
+#[inline]
+fn substep(
+    span: &ModeSpan,
+    z: &Vector,
+    passed: u8,
+    fixed_point: &mut Option<(usize, u64, Vector)>,
+    work: &mut Work,
+) -> SubstepEnd {
+    let (sys, h) = (span.sys, span.propagator.h);
+    let settled = (span.key, h.to_bits(), *z);
+    let at_fixed_point = *fixed_point == Some(settled);
+    // A guard whose slope already reaches zero inside the sub-step (a command step's
+    // slewing ends within nanoseconds): search at once, without first propagating over a
+    // sub-step that the event will cut. A state that its propagator maps onto itself
+    // crosses nothing: no prediction needed.
+    let mut guards =
+        (!(at_fixed_point && span.propagator.has_matrix())).then(|| GuardsAt::new(sys, z, passed));
+    let predicted = guards.as_ref().map_or(f64::INFINITY, |g| g.predicted_crossing());
+    let imminent = predicted < h
+        && (sys.closed_form_search(passed)
+            || guards.as_ref().is_some_and(|g| g.crossing_imminent(sys, z, h)));
+    let next = (!imminent).then(|| span.propagate(z, at_fixed_point));
+    let search = match next {
+        None => true,
+        // A stable system that returns to its state bit for bit is at rest: no guard can
+        // have crossed on the way.
+        Some(next) if next == *z => {
+            if span.propagator.has_matrix() {
+                *fixed_point = Some(settled);
+            }
+            false
+        }
+        Some(next) => {
+            let guards = guards.get_or_insert_with(|| GuardsAt::new(sys, z, passed));
+            may_cross(sys, guards, &next, h)
+        }
+    };
+    if search {
+        work.guard_locations += 1;
+        let guards = guards.get_or_insert_with(|| GuardsAt::new(sys, z, passed));
+        if let Some((tau, guard, at)) = locate_event(sys, z, h, guards, predicted) {
+            return SubstepEnd::Event { tau, guard, at };
+        }
+    }
+    SubstepEnd::Reached(next.unwrap_or_else(|| span.propagate(z, at_fixed_point)))
+}
+
+/// Drives the cylinder along the piece of spool path from `run`'s state to `end`
+/// (`duration` s later), joined to the piece pending before it; `defer`: the piece ends
+/// on an event, and if short it is left pending to go with the piece after the event.
+fn drive_piece(
+    (cylinder, work, c): (&mut DrivenCylinder, &mut Work, &CylinderParams),
+    sys: &ModeSystem,
+    run: &mut SegmentRun,
+    (end, duration): (&Vector, f64),
+    defer: bool,
+    inputs: &Held,
+) -> Result<(), String> {
+    let (z0, d) = run.pending.take().map_or((run.z, duration), |(z0, d)| (z0, d + duration));
+    if defer && d <= MERGE_SPAN {
+        run.pending = Some((z0, d));
+        Ok(())
+    } else {
+        cylinder.drive(sys, c, work, (&z0, end, d), inputs)
     }
 }
 

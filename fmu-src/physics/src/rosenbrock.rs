@@ -155,6 +155,17 @@ impl IntegratorMemory {
             cheap_backoff: 0,
         }
     }
+    /// Whether a step that could try Rodas3 may: not while sitting out a backoff (the turn
+    /// is counted).
+    fn takes_cheap_turn(&mut self) -> bool {
+        if self.cheap_skip > 0 {
+            self.cheap_skip -= 1;
+            false
+        } else {
+            true
+        }
+    }
+
     /// `[rtol, h_next, h_accepted, err_accepted, cheap_skip, cheap_backoff]`, for
     /// serialising the instance state.
     pub(crate) fn to_array(self) -> [f64; MEMORY_VALUES] {
@@ -246,19 +257,18 @@ pub(crate) fn advance_with_rate(
         return Err(format!("hydraulics: step {h} s is not a positive finite number"));
     }
     let model = Rhs { params, p_supply, f_ext, spool: &spool };
-    let mut y = state.to_array();
-    let mut tau = 0.0;
-    let mut step = if work.h_next > 0.0 { work.h_next } else { INITIAL_STEP };
-    let mut rejected_last = false;
-    // The last rejected attempt from the current point: (step, error).
-    let mut rejection: Option<(f64, f64)> = None;
+    let mut call = Call {
+        h,
+        y: state.to_array(),
+        tau: 0.0,
+        step: if work.h_next > 0.0 { work.h_next } else { INITIAL_STEP },
+        rejected_last: false,
+        rejection: None,
+        landings: 0,
+        cavitation_watch_end: 0.0,
+    };
     // The linearisation at (tau, y), kept across rejected attempts from the same point.
     let mut lin: Option<Linearisation> = None;
-    // Consecutive steps cut to a contact switch; bounded so a switch the state cannot be
-    // moved across (rounding) falls back to plain error control.
-    let mut landings = 0;
-    // Where the watch for a cavitation kink that a rejected attempt held ends (0: none).
-    let mut cavitation_watch_end = 0.0;
     loop {
         if stats.accepted + stats.rejected >= MAX_STEPS_PER_CALL {
             return Err(format!(
@@ -266,139 +276,223 @@ pub(crate) fn advance_with_rate(
             ));
         }
         // The last step lands exactly on h; remember the untruncated size for the next call.
-        let wanted = step;
-        let mut last = tau + step * 1.0001 >= h;
+        let wanted = call.step;
+        let mut last = call.tau + call.step * 1.0001 >= h;
         if last {
-            step = h - tau;
+            call.step = h - call.tau;
         }
         let here = match lin {
             Some(ref l) => l,
-            None => lin.insert(model.linearise(tau, &y, &mut stats)),
+            None => lin.insert(model.linearise(call.tau, &call.y, &mut stats)),
         };
         // Step onto the next end-stop contact switch (or a watched cavitation kink) instead of
         // across it.
         let mut landing = false;
-        if landings < MAX_LANDINGS {
-            let linear = (&here.f0, &here.jac, &here.f_t);
-            let contact = next_contact_switch(params, &y, linear, step).map(|t_switch| {
-                if t_switch <= 1e-3 * wanted {
-                    // Close: the Taylor prediction is exact to far below this margin.
-                    t_switch * (1.0 + 1e-6)
-                } else {
-                    // Far: land just short; the next step, from very close, lands on it.
-                    t_switch * (1.0 - 1e-4)
-                }
-            });
-            // Most kinks of the cavitation fade are crossed at no cost. One inside a rejected
-            // attempt is watched until that attempt's end, and a step that reaches it ends
-            // just past it: a kink (not a jump) a hair before a step's end costs nothing.
-            let rejected = rejection.map_or(0.0, |(rejected, _)| rejected);
-            let mut kink = None;
-            if rejected > 0.0 || cavitation_watch_end > tau {
-                let horizon = rejected.max(cavitation_watch_end - tau);
-                kink = next_cavitation_switch(params, &y, linear, horizon);
-                cavitation_watch_end = kink.map_or(0.0, |_| tau + horizon);
-            }
-            let kink = kink.map(|t_switch| t_switch * (1.0 + 1e-3));
-            if let Some(t_land) = contact.into_iter().chain(kink).reduce(f64::min) {
-                let t_land = t_land.max(1e-12 * h);
-                if t_land < step {
-                    step = t_land;
-                    last = false;
-                    landing = true;
-                }
+        if call.landings < MAX_LANDINGS {
+            if let Some(t_land) = call.switch_ahead(params, here, wanted) {
+                call.step = t_land;
+                last = false;
+                landing = true;
             }
         }
-        if step <= 1e-14 * h.max(1e-6) {
-            return Err(format!("hydraulics: step size underflow at {tau} s into a step of {h} s"));
+        if call.step <= 1e-14 * h.max(1e-6) {
+            return Err(format!(
+                "hydraulics: step size underflow at {} s into a step of {h} s",
+                call.tau
+            ));
         }
         // A step the call boundary cut to at most half of what Rodas4's controller wants is
         // smooth at this size: try the cheaper Rodas3 under the same tolerance first and keep
         // its result only if its own error estimate passes; else Rodas4 from the same
         // linearisation. The controller only ever learns from Rodas4 steps.
-        let cheap = last
-            && step * 2.0 <= wanted
-            && if work.cheap_skip > 0 {
-                work.cheap_skip -= 1;
-                false
-            } else {
-                true
-            };
-        if cheap {
-            let (y3, err3) =
-                rosenbrock_step(&RODAS3, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
-            if err3 <= 1.0 {
-                work.cheap_backoff = 0;
-                stats.accepted += 1;
-                stats.cheap += 1;
-                y = y3;
-                clamp_to_floor(params, &mut y, &mut stats);
+        if last && call.step * 2.0 <= wanted && work.takes_cheap_turn() {
+            if let Some(y3) = cheap_step(&model, here, &call, work, &mut stats)? {
+                call.y = y3;
                 work.h_next = wanted;
                 break;
             }
-            stats.cheap_failed += 1;
-            work.cheap_backoff = (2 * work.cheap_backoff).clamp(1, MAX_CHEAP_BACKOFF);
-            work.cheap_skip = work.cheap_backoff;
         }
-        let (y_new, err) =
-            rosenbrock_step(&RODAS4, &model, here, (tau, &y, step), work.rtol, &mut stats)?;
+        let (y_new, err) = rosenbrock_step(
+            &RODAS4,
+            &model,
+            here,
+            (call.tau, &call.y, call.step),
+            work.rtol,
+            &mut stats,
+        )?;
         if err <= 1.0 {
-            stats.accepted += 1;
-            rejection = None;
             lin = None;
-            y = y_new;
-            clamp_to_floor(params, &mut y, &mut stats);
-            tau += step;
-            if landing {
-                // A step cut short by a switch says nothing about the step size past it:
-                // continue with what the controller wanted before.
-                stats.landings += 1;
-                landings += 1;
-                step = wanted.min(h);
-                continue;
-            }
-            landings = 0;
-            let mut factor = (fourth_root(err) / SAFETY).clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR);
-            // Gustafsson: also use the trend of the error between accepted steps.
-            if work.h_accepted > 0.0 {
-                let predictive =
-                    (work.h_accepted / step) * fourth_root(err * err / work.err_accepted) / SAFETY;
-                factor = factor.max(predictive.clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR));
-            }
-            work.h_accepted = step;
-            work.err_accepted = err.max(1e-2);
-            let mut next = step / factor;
-            if rejected_last {
-                next = next.min(step);
-            }
-            rejected_last = false;
-            if last {
-                work.h_next = if next >= step { next.max(wanted) } else { next };
+            let attempt = Attempt { wanted, last, landing };
+            if call.accept(params, y_new, err, attempt, work, &mut stats) {
                 break;
             }
-            step = next.min(h);
         } else {
-            stats.rejected += 1;
-            rejected_last = true;
-            // Order 4 is what the error should follow; where a second rejection from the
-            // same point shows it falling slower (a kink inside the step), use the order seen.
-            let root = match rejection {
-                Some((h0, e0)) if e0 > err && h0 > step => {
-                    let order = ((e0 / err).ln() / (h0 / step).ln()).clamp(1.0, 4.0);
-                    err.powf(1.0 / order)
-                }
-                _ => fourth_root(err),
-            };
-            rejection = Some((step, err));
-            let factor = (root / SAFETY).min(1.0 / MIN_FACTOR);
-            step /= factor;
+            call.reject(err, &mut stats);
         }
     }
-    if !y.iter().all(|v| v.is_finite()) {
+    if !call.y.iter().all(|v| v.is_finite()) {
         return Err("hydraulics: the state became non-finite; step refused".into());
     }
-    *state = CylinderState::from_array(&y);
+    *state = CylinderState::from_array(&call.y);
     Ok(stats)
+}
+
+/// Where a call of [`advance_with_rate`] stands between its internal steps.
+struct Call {
+    /// The call's length (s).
+    h: f64,
+    /// The state reached, `tau` into the call.
+    y: Vec4,
+    tau: f64,
+    /// Size of the next attempt (s).
+    step: f64,
+    /// The attempt before the last accepted step was rejected.
+    rejected_last: bool,
+    /// The last rejected attempt from the current point: (step, error).
+    rejection: Option<(f64, f64)>,
+    /// Consecutive steps cut to a contact switch; bounded so a switch the state cannot be
+    /// moved across (rounding) falls back to plain error control.
+    landings: u32,
+    /// Where the watch for a cavitation kink that a rejected attempt held ends (0: none).
+    cavitation_watch_end: f64,
+}
+
+/// An attempted step: the controller's size before the call boundary or a switch cut it,
+/// whether it ends the call, whether a switch cut it.
+#[derive(Clone, Copy)]
+struct Attempt {
+    wanted: f64,
+    last: bool,
+    landing: bool,
+}
+
+impl Call {
+    /// Where the step from here should end instead of `self.step` (`wanted`: the
+    /// controller's size): just short of or on the next end-stop contact switch, or just
+    /// past a watched cavitation kink, whichever comes first inside the step (`None`: the
+    /// step stands). Updates the kink's watch.
+    fn switch_ahead(
+        &mut self,
+        params: &CylinderParams,
+        here: &Linearisation,
+        wanted: f64,
+    ) -> Option<f64> {
+        let linear = (&here.f0, &here.jac, &here.f_t);
+        let contact = next_contact_switch(params, &self.y, linear, self.step).map(|t_switch| {
+            if t_switch <= 1e-3 * wanted {
+                // Close: the Taylor prediction is exact to far below this margin.
+                t_switch * (1.0 + 1e-6)
+            } else {
+                // Far: land just short; the next step, from very close, lands on it.
+                t_switch * (1.0 - 1e-4)
+            }
+        });
+        // Most kinks of the cavitation fade are crossed at no cost. One inside a rejected
+        // attempt is watched until that attempt's end, and a step that reaches it ends
+        // just past it: a kink (not a jump) a hair before a step's end costs nothing.
+        let rejected = self.rejection.map_or(0.0, |(rejected, _)| rejected);
+        let mut kink = None;
+        if rejected > 0.0 || self.cavitation_watch_end > self.tau {
+            let horizon = rejected.max(self.cavitation_watch_end - self.tau);
+            kink = next_cavitation_switch(params, &self.y, linear, horizon);
+            self.cavitation_watch_end = kink.map_or(0.0, |_| self.tau + horizon);
+        }
+        let kink = kink.map(|t_switch| t_switch * (1.0 + 1e-3));
+        let t_land = contact.into_iter().chain(kink).reduce(f64::min)?;
+        let t_land = t_land.max(1e-12 * self.h);
+        (t_land < self.step).then_some(t_land)
+    }
+
+    /// Takes an accepted Rodas4 step to `y_new` (error `err`) and chooses the next step's
+    /// size: the predictive controller, not after a landing on a switch. Returns whether
+    /// the call is done.
+    fn accept(
+        &mut self,
+        params: &CylinderParams,
+        y_new: Vec4,
+        err: f64,
+        attempt: Attempt,
+        work: &mut IntegratorMemory,
+        stats: &mut Stats,
+    ) -> bool {
+        stats.accepted += 1;
+        self.rejection = None;
+        self.y = y_new;
+        clamp_to_floor(params, &mut self.y, stats);
+        self.tau += self.step;
+        if attempt.landing {
+            // A step cut short by a switch says nothing about the step size past it:
+            // continue with what the controller wanted before.
+            stats.landings += 1;
+            self.landings += 1;
+            self.step = attempt.wanted.min(self.h);
+            return false;
+        }
+        self.landings = 0;
+        let step = self.step;
+        let mut factor = (fourth_root(err) / SAFETY).clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR);
+        // Gustafsson: also use the trend of the error between accepted steps.
+        if work.h_accepted > 0.0 {
+            let predictive =
+                (work.h_accepted / step) * fourth_root(err * err / work.err_accepted) / SAFETY;
+            factor = factor.max(predictive.clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR));
+        }
+        work.h_accepted = step;
+        work.err_accepted = err.max(1e-2);
+        let mut next = step / factor;
+        if self.rejected_last {
+            next = next.min(step);
+        }
+        self.rejected_last = false;
+        if attempt.last {
+            work.h_next = if next >= step { next.max(attempt.wanted) } else { next };
+            return true;
+        }
+        self.step = next.min(self.h);
+        false
+    }
+
+    /// Shrinks the step after a rejected attempt with error `err`.
+    fn reject(&mut self, err: f64, stats: &mut Stats) {
+        stats.rejected += 1;
+        self.rejected_last = true;
+        // Order 4 is what the error should follow; where a second rejection from the
+        // same point shows it falling slower (a kink inside the step), use the order seen.
+        let root = match self.rejection {
+            Some((h0, e0)) if e0 > err && h0 > self.step => {
+                let order = ((e0 / err).ln() / (h0 / self.step).ln()).clamp(1.0, 4.0);
+                err.powf(1.0 / order)
+            }
+            _ => fourth_root(err),
+        };
+        self.rejection = Some((self.step, err));
+        let factor = (root / SAFETY).min(1.0 / MIN_FACTOR);
+        self.step /= factor;
+    }
+}
+
+/// A Rodas3 attempt at the step from `call`'s point: its state (lifted to the cavitation
+/// floor) if its own error estimate passes, else `None` after backing off further attempts.
+fn cheap_step<F: Fn(f64) -> (f64, f64)>(
+    model: &Rhs<'_, F>,
+    here: &Linearisation,
+    call: &Call,
+    work: &mut IntegratorMemory,
+    stats: &mut Stats,
+) -> Result<Option<Vec4>, String> {
+    let (mut y3, err3) =
+        rosenbrock_step(&RODAS3, model, here, (call.tau, &call.y, call.step), work.rtol, stats)?;
+    if err3 <= 1.0 {
+        work.cheap_backoff = 0;
+        stats.accepted += 1;
+        stats.cheap += 1;
+        clamp_to_floor(model.params, &mut y3, stats);
+        return Ok(Some(y3));
+    }
+    stats.cheap_failed += 1;
+    work.cheap_backoff = (2 * work.cheap_backoff).clamp(1, MAX_CHEAP_BACKOFF);
+    work.cheap_skip = work.cheap_backoff;
+    Ok(None)
 }
 
 /// x^(1/4) by two square roots (exact to rounding, a fraction of `powf`'s cost).
