@@ -1,5 +1,7 @@
-//! Double-acting cylinder and its mechanical load, fed by the valve ports (see
-//! [`super::valve::port_flows`]).
+//! Double-acting cylinder and its mechanical load, fed by the valve's metering ports (see
+//! [`super::metering_ports`]). The terms of its equations, each with its slopes, are in
+//! [`super::cylinder_terms`]; here they are summed to the rates, and its linearisation is in
+//! [`super::cylinder_jacobian`].
 //!
 //! State `[p_A, p_B, x, v]`: chamber pressures, piston position (0 = mid-stroke, + = extension)
 //! and velocity. The spool position `x_s(t)` comes from the exact integrator of [`crate`] as a function of
@@ -7,7 +9,7 @@
 //!
 //! # Modelling choices
 //! * **Pressures are gauge** (relative to atmosphere); the tank is at `hydraulics.p_tank` = 0.
-//! * **Valve ports** (critically centred, no lap, no leakage): for `x_s >= 0`
+//! * **Valve ports** (critically centred, no lap, no leakage, [`super::metering_ports`]): for `x_s >= 0`
 //!   `Q_A = K3 x_s rsqrt(p_S - p_A)/sqrt(dp_r/2)` and `Q_B = K3 x_s rsqrt(p_B - p_T)/sqrt(dp_r/2)`,
 //!   mirrored for `x_s < 0`. `rsqrt` is a signed square root, replaced below `dp_laminar` by
 //!   the odd cubic that matches value and slope at `dp_laminar` (C1, slope `1.25/sqrt(dp_lam)`
@@ -49,9 +51,12 @@
 //!   `Q_A = 1.28 K3 x_s` at `p_S = dp_r`). `K3 x_s` is exact only for a symmetric cylinder.
 //!
 
+use super::cylinder_terms::{chamber_terms, free_volumes, net_force, port_flows, relief_flow};
+use super::metering_ports::MeteringPorts;
 use super::params::{CylinderLoadParams, Outputs, ValveParams};
 use super::root_finding::newton_in_bracket;
-use super::valve::port_flows;
+
+pub(crate) use super::cylinder_terms::MIN_VOLUME_FRACTION;
 
 /// Number of states: `[p_A, p_B, x, v]`.
 pub(crate) const N_STATES: usize = 4;
@@ -70,12 +75,8 @@ pub(crate) type Mat4 = [[f64; N_STATES]; N_STATES];
 pub(crate) struct CylinderParams {
     /// Cylinder, load, leakage and fluid.
     pub load: CylinderLoadParams,
-    /// Spool/bushing flow gain K3 (the same value as the valve's `valve.K3`) (m2/s).
-    pub k3: f64,
-    /// Total rated valve pressure drop at which the no-load flow is K3*x_s (Pa).
-    pub dp_rated: f64,
-    /// Port pressure drop below which the orifice law turns laminar (regularisation) (Pa).
-    pub dp_laminar: f64,
+    /// The valve's metering-port data.
+    pub ports: MeteringPorts,
 }
 
 impl std::ops::Deref for CylinderParams {
@@ -105,9 +106,11 @@ impl CylinderParams {
     ) -> Result<CylinderParams, String> {
         let p = CylinderParams {
             load: *cylinder,
-            k3: valve.k3,
-            dp_rated: valve.dp_rated,
-            dp_laminar: valve.dp_laminar,
+            ports: MeteringPorts {
+                k3: valve.k3,
+                dp_rated: valve.dp_rated,
+                dp_laminar: valve.dp_laminar,
+            },
         };
         p.validate()?;
         Ok(p)
@@ -115,8 +118,8 @@ impl CylinderParams {
 
     /// The rules between parameters.
     pub(crate) fn validate(&self) -> Result<(), String> {
-        if !(self.k3.is_finite() && self.k3 > 0.0) {
-            return Err(format!("valve.K3 = {} rejected: must be positive", self.k3));
+        if !(self.ports.k3.is_finite() && self.ports.k3 > 0.0) {
+            return Err(format!("valve.K3 = {} rejected: must be positive", self.ports.k3));
         }
         if self.rod >= self.bore {
             return Err(format!(
@@ -196,84 +199,6 @@ pub(crate) fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) ->
     let p_b = ((p_a * area_a + f_ext) / area_b).clamp(lo, hi);
     CylinderState { p_a, p_b, x: 0.0, v: 0.0 }
 }
-/// Friction force opposing motion, viscous part included (N).
-fn friction(params: &CylinderParams, v: f64) -> f64 {
-    let stribeck = (v / params.v_stribeck).powi(2);
-    let excess = params.f_static - params.f_coulomb;
-    // Well past the Stribeck speed the decayed part is below half an ulp of F_coulomb
-    // (F_coulomb * 2^-54 bounds that from below), so the sum is F_coulomb exactly.
-    let dry = if stribeck > STRIBECK_TAIL.0
-        && excess.abs() * STRIBECK_TAIL.1 <= params.f_coulomb * (0.25 * f64::EPSILON)
-    {
-        params.f_coulomb
-    } else {
-        params.f_coulomb + excess * stribeck_decay(stribeck)
-    };
-    dry * smooth_sign(v / params.v_friction_smooth) + params.b_viscous * v
-}
-
-/// `(s, b)`: for `stribeck > s` the computed `exp(-stribeck)` is below `b` (`e^-50 =
-/// 1.93e-22`, with room for libm's rounding).
-const STRIBECK_TAIL: (f64, f64) = (50.0, 2.0e-22);
-
-/// `exp(-stribeck)` for `stribeck >= 0`. Beyond [`DECAY_UNDERFLOW`] that is exactly 0 in
-/// f64; returned without the call (a moving piston is there: libm's underflow path is slow).
-pub(crate) fn stribeck_decay(stribeck: f64) -> f64 {
-    if stribeck > DECAY_UNDERFLOW {
-        0.0
-    } else {
-        (-stribeck).exp()
-    }
-}
-
-/// `exp(-x)` rounds to 0 for every `x` above about 745.13 (`e^-x` below half the smallest
-/// subnormal); a margin above that.
-const DECAY_UNDERFLOW: f64 = 750.0;
-
-/// `tanh(a)`, the friction's smooth sign. For `|a| >= 22` tanh is `+-1` exactly in f64 (the
-/// cut-off of glibc's and musl's own shortcut); returned without the call.
-pub(crate) fn smooth_sign(a: f64) -> f64 {
-    if a.abs() >= 22.0 {
-        1.0_f64.copysign(a)
-    } else {
-        a.tanh()
-    }
-}
-
-/// End-stop contact force on the piston, positive towards +x (N). Never pulls.
-fn endstop_force(params: &CylinderParams, x: f64, v: f64) -> f64 {
-    let half = 0.5 * params.stroke;
-    let beyond_top = x - half;
-    let beyond_bottom = -half - x;
-    if beyond_top > 0.0 {
-        -(params.k_endstop * beyond_top + params.c_endstop * v).max(0.0)
-    } else if beyond_bottom > 0.0 {
-        (params.k_endstop * beyond_bottom - params.c_endstop * v).max(0.0)
-    } else {
-        0.0
-    }
-}
-
-/// Factor on the bulk modulus of a chamber: 1 while filling; fades to 0 at the cavitation
-/// floor while emptying, so the pressure cannot pass the floor.
-fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64) -> f64 {
-    if net_inflow >= 0.0 {
-        return 1.0;
-    }
-    let u = ((p - params.p_cavitation) / params.dp_cavitation_band).clamp(0.0, 1.0);
-    u * (2.0 - u)
-}
-
-/// Chamber volumes never shrink below this fraction of the dead volume (keeps the pressure
-/// equations finite). Reaching it means the piston went through the end of the cylinder:
-/// [`check_inside`] refuses such a state.
-pub(crate) const MIN_VOLUME_FRACTION: f64 = 1e-3;
-
-/// Chamber volumes `(V_A, V_B)` at position `x`, before the clamp (m3).
-fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
-    let half = 0.5 * params.stroke;
-    (params.v_dead + params.area_a() * (x + half), params.v_dead + params.area_b() * (half - x))
-}
 
 /// Refuses a state in which a chamber volume reached its clamp: the piston is through the
 /// end stop and the dead volume (an end stop that cannot hold the load), where the
@@ -295,23 +220,6 @@ pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Re
     Ok(())
 }
 
-/// Flow through a chamber's relief valve to tank at chamber pressure `p` (m3/s), and its
-/// slope `dQ/dp`: zero up to the cracking pressure, quadratic over the override, then
-/// linear with the slope matched (C1).
-pub(crate) fn relief_flow(params: &CylinderParams, p: f64) -> (f64, f64) {
-    let rise = p - params.p_tank - params.relief_p_crack;
-    if params.relief_p_crack == 0.0 || rise <= 0.0 {
-        return (0.0, 0.0);
-    }
-    let (q_rated, override_) = (params.relief_q_rated, params.relief_dp_override);
-    let s = rise / override_;
-    if s < 1.0 {
-        (q_rated * s * s, 2.0 * q_rated * s / override_)
-    } else {
-        (q_rated * (2.0 * s - 1.0), 2.0 * q_rated / override_)
-    }
-}
-
 /// Which chambers' relief valves pass flow at this state: `[A, B]`.
 pub(crate) fn relief_open(params: &CylinderParams, state: &CylinderState) -> [bool; 2] {
     [state.p_a, state.p_b].map(|p| relief_flow(params, p).0 > 0.0)
@@ -325,29 +233,8 @@ pub(crate) fn derivatives(
     p_supply: f64,
     f_ext: f64,
 ) -> [f64; 4] {
-    let (area_a, area_b) = (params.area_a(), params.area_b());
-    let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
-    let (volume_a, volume_b) = free_volumes(params, state.x);
-    let (volume_a, volume_b) = (volume_a.max(min_volume), volume_b.max(min_volume));
-    let (q_a, q_b) = port_flows(params, state, x_s, p_supply);
-    let q_internal = params.c_leak * (state.p_a - state.p_b);
-    let q_external_a = params.c_leak_external * (state.p_a - params.p_tank);
-    let q_external_b = params.c_leak_external * (state.p_b - params.p_tank);
-    let relief_a = relief_flow(params, state.p_a).0;
-    let relief_b = relief_flow(params, state.p_b).0;
-    let inflow_a = q_a - area_a * state.v - q_internal - q_external_a - relief_a;
-    let inflow_b = -q_b + area_b * state.v + q_internal - q_external_b - relief_b;
-    let dp_a = params.beta / volume_a * inflow_a * cavitation_factor(params, state.p_a, inflow_a);
-    let dp_b = params.beta / volume_b * inflow_b * cavitation_factor(params, state.p_b, inflow_b);
-    [dp_a, dp_b, state.v, net_force(params, state, f_ext) / params.mass]
-}
-
-/// The force on the piston and load: pressures, friction, the load and the end stops (N).
-#[inline]
-pub(crate) fn net_force(params: &CylinderParams, state: &CylinderState, f_ext: f64) -> f64 {
-    state.p_a * params.area_a() - state.p_b * params.area_b() - friction(params, state.v)
-        + f_ext
-        + endstop_force(params, state.x, state.v)
+    let [dp_a, dp_b] = chamber_terms(params, state, x_s, p_supply).pressure_rates;
+    [dp_a, dp_b, state.v, net_force(params, state, f_ext)[0] / params.mass]
 }
 
 /// Writes the hydraulic side's outputs at a state into `out`.
@@ -358,7 +245,8 @@ pub(crate) fn write_outputs(
     p_supply: f64,
     out: &mut Outputs,
 ) {
-    (out.q_a, out.q_b) = port_flows(params, state, x_s, p_supply);
+    let flows = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
+    (out.q_a, out.q_b) = (flows.q_a, flows.q_b);
     out.p_a = state.p_a;
     out.p_b = state.p_b;
     out.x_piston = state.x;

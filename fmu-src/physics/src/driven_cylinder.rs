@@ -3,6 +3,7 @@
 //! speed alone while it glides.
 
 use super::*;
+use crate::cylinder_terms::net_force;
 
 /// The cylinder's state and its integrator's memory (both part of the instance state), and
 /// the (spool, supply, load) bits at which it was last found at rest (a pure cache).
@@ -94,7 +95,7 @@ impl DrivenCylinder {
     /// piston accelerates, no flow needs evaluating.
     fn steady(&self, params: &CylinderParams, x_s: f64, inputs: &Held) -> bool {
         let state = &self.state;
-        settled(cylinder::net_force(params, state, inputs.f_ext) / params.mass, cylinder::V) && {
+        settled(net_force(params, state, inputs.f_ext)[0] / params.mass, cylinder::V) && {
             let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.f_ext);
             settled(d[cylinder::PA], cylinder::PA) && settled(d[cylinder::PB], cylinder::PB)
         }

@@ -6,10 +6,9 @@
 //! * Optional travel stops (`valve.x_flapper_max`, `valve.x_spool_max`; the paper's linear
 //!   model has none): a part reaching its limit is held there (inelastic impact) while it is
 //!   driven outwards, and leaves when the drive turns back.
-//! * Metering ports (critically centred): the orifice law of [`port_flows`], which feeds the
-//!   cylinder ([`super::cylinder`]).
+//! * Metering ports (critically centred): the orifice law of [`super::metering_ports`], which
+//!   feeds the cylinder ([`super::cylinder`]).
 
-use super::cylinder::{CylinderParams, CylinderState};
 use super::root_finding::newton_in_bracket;
 use super::state::{unit, Mat, Vector, I, ONE, VF, XF, XS};
 use super::Coefficients;
@@ -167,57 +166,6 @@ pub(crate) fn no_load_flow(c: &Coefficients, x_s: f64) -> f64 {
     c.valve.k3 * x_s
 }
 
-/// Signed square root, regularised below `dp_lam` by the odd cubic `a dp + b dp^3` that
-/// matches value and slope of `sqrt` at `dp_lam` (C1; slope 1.25/sqrt(dp_lam) at zero).
-pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
-    let magnitude = dp.abs();
-    if magnitude >= dp_lam {
-        // dp.signum() * sqrt(|dp|) (dp is not NaN here), without signum's NaN handling.
-        magnitude.sqrt().copysign(dp)
-    } else {
-        let s = dp / dp_lam;
-        dp_lam.sqrt() * s * (1.25 - 0.25 * s * s)
-    }
-}
-
-/// Actual port flows `(Q_A into A, Q_B out of B)` (m3/s) for spool position `x_s`.
-#[inline(always)]
-pub(crate) fn port_flows(
-    params: &CylinderParams,
-    state: &CylinderState,
-    x_s: f64,
-    p_supply: f64,
-) -> (f64, f64) {
-    // Chamber pressures below the floor (rounding only) are read at the floor.
-    let p_a = state.p_a.max(params.p_cavitation);
-    let p_b = state.p_b.max(params.p_cavitation);
-    let gain = params.k3 * x_s / (0.5 * params.dp_rated).sqrt();
-    let lam = params.dp_laminar;
-    if x_s >= 0.0 {
-        // P -> A and B -> T open.
-        (
-            gain * regularised_sqrt(p_supply - p_a, lam),
-            gain * regularised_sqrt(p_b - params.p_tank, lam),
-        )
-    } else {
-        // A -> T and P -> B open (gain < 0 turns the flows around).
-        (
-            gain * regularised_sqrt(p_a - params.p_tank, lam),
-            gain * regularised_sqrt(p_supply - p_b, lam),
-        )
-    }
-}
-/// Slope of [`regularised_sqrt`] with respect to `dp` (finite everywhere, 1.25/sqrt(dp_lam) at 0).
-pub(crate) fn regularised_sqrt_slope(dp: f64, dp_lam: f64) -> f64 {
-    let magnitude = dp.abs();
-    if magnitude >= dp_lam {
-        0.5 / magnitude.sqrt()
-    } else {
-        let s = dp / dp_lam;
-        (1.25 - 0.75 * s * s) / dp_lam.sqrt()
-    }
-}
-
 /// The spool path over one call: the quintic Hermite interpolant through position, rate
 /// and acceleration at both ends of `[0, h]` (the physics core knows them exactly), kept as
 /// a polynomial in `s = tau / h` (the integrator evaluates it at every stage).
@@ -265,7 +213,8 @@ impl SpoolPath {
 
     /// Where the spool passes null inside `(0, h)`, if its ends lie on opposite sides:
     /// safeguarded Newton on the path, to rounding. The time returned is the first one
-    /// found on the far side's port law ([`port_flows`] reads `x_s = 0` as opening P -> A),
+    /// found on the far side's port law ([`super::metering_ports`] reads `x_s = 0` as opening
+    /// P -> A),
     /// so the piece that starts there is linearised on the branch it runs on: the flows
     /// are continuous at null but their slope in `x_s` is not.
     pub(crate) fn null_crossing(&self) -> Option<f64> {
@@ -288,39 +237,6 @@ impl SpoolPath {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    const P_RATED: f64 = 6.8948e6;
-
-    #[test]
-    fn regularised_sqrt_is_c1_and_exact_above_laminar() {
-        let lam = 1e5;
-        for dp in [1e5, 2e5, 3.4474e6, -5e6] {
-            assert_eq!(regularised_sqrt(dp, lam), f64::signum(dp) * f64::sqrt(dp.abs()));
-        }
-        let below = regularised_sqrt(lam * (1.0 - 1e-9), lam);
-        assert!((below - lam.sqrt()).abs() < 1e-9 * lam.sqrt());
-        let slope =
-            |dp: f64| (regularised_sqrt(dp + 1e-3, lam) - regularised_sqrt(dp - 1e-3, lam)) / 2e-3;
-        assert!((slope(lam - 1.0) - slope(lam + 1.0)).abs() < 1e-4 * slope(lam + 1.0));
-        assert!((slope(0.0) - 1.25 / lam.sqrt()).abs() < 1e-9);
-        assert_eq!(regularised_sqrt(-3e4, lam), -regularised_sqrt(3e4, lam));
-    }
-
-    #[test]
-    fn valve_ports_follow_the_orifice_law() {
-        let p = CylinderParams::default();
-        // Each port at dp_r/2 gives exactly the paper's no-load flow K3*x_s.
-        let half = 0.5 * P_RATED;
-        let balanced = CylinderState { p_a: half, p_b: half, x: 0.0, v: 0.0 };
-        let (q_a, q_b) = port_flows(&p, &balanced, 1e-4, P_RATED);
-        assert!((q_a - p.k3 * 1e-4).abs() < 1e-12 * q_a.abs() && (q_b - q_a).abs() < 1e-18);
-        let (q_a, q_b) = port_flows(&p, &balanced, -1e-4, P_RATED);
-        assert!((q_a + p.k3 * 1e-4).abs() < 1e-12 * q_a.abs() && (q_b - q_a).abs() < 1e-18);
-        // Closed valve: no flow at any pressure; load pressure above supply: reverse flow.
-        assert_eq!(port_flows(&p, &balanced, 0.0, P_RATED), (0.0, 0.0));
-        let over = CylinderState { p_a: 1.2 * P_RATED, ..balanced };
-        assert!(port_flows(&p, &over, 1e-4, P_RATED).0 < 0.0);
-    }
 
     #[test]
     fn spool_path_rate_is_the_derivative_of_its_position() {
