@@ -5,6 +5,11 @@
 use super::*;
 use crate::cylinder_terms::net_force;
 
+/// Pieces this short (events right at a piece start) take an Euler step in the cylinder, s.
+const TINY_PIECE: f64 = 1e-10;
+/// A cylinder counts as at rest when it would drift less than 1e-10 of its scale in this time, s.
+const REST_HORIZON: f64 = 1.0;
+
 /// The cylinder's state and its integrator's memory (both part of the instance state), and
 /// the (spool, supply, load) bits at which it was last found at rest (a pure cache).
 #[derive(Clone, Copy)]

@@ -3,10 +3,15 @@
 //! together and advances them; it sees only the typed [`Params`], [`Inputs`] and
 //! [`Outputs`] (no value references, no variable names).
 //!
-//! Driver, coil and valve form a piecewise-linear system, integrated exactly
-//! (`exact_integrator`); the cylinder is nonlinear and stiff, integrated by a Rosenbrock
-//! method (`rosenbrock`) along the exact spool path. No FFI, no `unsafe`.
+//! [`Physics`] holds the actuator (`actuator`: coefficients, mode systems, state) and the
+//! integrator that [`Params::solver_method`] chose (`integrator`: the seam). It cuts each
+//! step at the time events of the digital loops (`advance`) and has the integrator evolve
+//! the continuous part between them. The exact integrator (`exact_evolution`): driver,
+//! coil and valve form a piecewise-linear system, integrated exactly (`exact_integrator`);
+//! the cylinder is nonlinear and stiff, integrated by a Rosenbrock method (`rosenbrock`)
+//! along the exact spool path. No FFI, no `unsafe`.
 
+mod actuator;
 mod advance;
 mod augmented_exp;
 pub mod bytes;
@@ -16,8 +21,10 @@ mod cylinder_jacobian;
 mod cylinder_terms;
 mod driven_cylinder;
 mod driver;
+mod exact_evolution;
 mod exact_integrator;
 mod hbridge;
+mod integrator;
 mod lu4;
 mod metering_ports;
 mod outer_loop;
@@ -34,9 +41,11 @@ mod valve;
 
 pub use params::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
-    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, ValveParams, VALVE_RATED_CURRENT,
+    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, SolverMethod, ValveParams,
+    VALVE_RATED_CURRENT,
 };
 
+use actuator::Actuator;
 use cylinder::{CylinderParams, CylinderState};
 use driven_cylinder::DrivenCylinder;
 use driver::{Mode, MODES};
@@ -44,19 +53,11 @@ use exact_integrator::{
     locate_event, may_cross, GuardsAt, ModeSystem, Propagator, PropagatorCache,
 };
 use hbridge::Digital;
+use integrator::{ChosenIntegrator, Integrator};
 use outer_loop::{LoopParams, OuterLoop};
 use rosenbrock::IntegratorMemory;
 use state::{Mat, Vector, I, IREF, ONE, U, UI, VMAX, XF, XS};
 use valve::SpoolPath;
-
-/// A step that switches mode more often than this is chattering: refuse it.
-const MAX_EVENTS_PER_STEP: u32 = 1000;
-/// Pieces this short (events right at a piece start) take an Euler step in the cylinder, s.
-const TINY_PIECE: f64 = 1e-10;
-/// A cylinder counts as at rest when it would drift less than 1e-10 of its scale in this time, s.
-const REST_HORIZON: f64 = 1.0;
-/// Bounds the work of one doStep with the PWM driver (each instant costs ~0.3 us).
-const MAX_TIME_EVENTS_PER_STEP: u64 = 10_000_000;
 
 /// The parameters in the form the equations use (derived from [`Params`] once).
 #[derive(Clone, Copy, Debug)]
@@ -176,31 +177,13 @@ impl Work {
 /// The whole physical state and what is needed to advance it.
 #[derive(Clone)]
 pub struct Physics {
-    params: Coefficients,
-    systems: [ModeSystem; MODES.len()],
-    /// The mode pairs whose slew ends [`slew_end`] takes.
-    slew_exits: slew_end::SlewExits,
-    z: Vector,
-    mode: Mode,
-    stops: valve::Stops,
-    /// The system of (mode, stops) when the valve has travel stops (without, the mode's
-    /// own system in `systems` serves).
-    active: ModeSystem,
-    /// Discrete state of the H-bridge's digital loop and PWM.
-    digital: Digital,
-    outer: OuterLoop,
-    cylinder: DrivenCylinder,
-    /// A state the propagator of (system, sub-step bits) maps onto itself bit for bit: the
-    /// valve and driver have settled, so the product and the guard checks can be skipped
-    /// with identical results (a pure cache, not part of the state).
-    fixed_point: Option<(usize, u64, Vector)>,
-    /// Supply pressure of the last step (the port flows depend on it).
-    p_supply: f64,
+    /// Coefficients, mode systems and the state.
+    actuator: Actuator,
+    /// What advances the actuator between time events ([`Params::solver_method`]).
+    integrator: ChosenIntegrator,
     /// Inputs and step size (bits) of the last step if it left the state as it was, bit
     /// for bit, with no clock running: the same step again changes nothing (a pure cache).
     resting: Option<RestKey>,
-    cache: PropagatorCache,
-    work: Work,
 }
 
 /// Inputs and step size as bits (see `Physics::resting`).
@@ -238,136 +221,45 @@ impl Physics {
     /// Builds the mode systems and puts the model in equilibrium for `inputs` at
     /// `start_time` (the sampling clocks of the digital loops count from time 0).
     pub fn start(params: &Params, inputs: &Inputs, start_time: f64) -> Result<Physics, String> {
-        let rtol = params.solver_rtol;
-        let params = Coefficients::new(params)?;
-        let systems = MODES.map(|m| mode_system(&params, m));
-        if !systems.iter().all(|s| s.a.iter().all(|x| x.is_finite()) && s.radius.is_finite()) {
-            return Err(format!(
-                "the parameters give a model too stiff to represent (coefficients like (coil.R + coil.R_sense)/coil.L = {:e} 1/s, \
-                 valve.f_n, coil.K_b/coil.L overflow); use physically sized values",
-                params.r_total / params.inductance
-            ));
-        }
-        let mut physics = Physics {
-            params,
-            systems,
-            slew_exits: slew_end::slew_exits(&systems),
-            z: Vector::zeros(),
-            mode: Mode::Linear,
-            stops: valve::Stops::default(),
-            active: systems[Mode::Linear.index()],
-            digital: Digital::default(),
-            outer: OuterLoop::default(),
-            cylinder: DrivenCylinder::new(CylinderState::default(), IntegratorMemory::new(rtol)),
-            fixed_point: None,
-            p_supply: inputs.p_supply,
-            resting: None,
-            cache: PropagatorCache::new(),
-            work: Work::default(),
-        };
-        let held = Held::new(&params, inputs);
-        params.cylinder.check_supply(held.p_supply)?;
-        physics.outer = OuterLoop::at_start(&params.loops, held.reference, start_time);
-        physics.cylinder.state = cylinder::equilibrium(&params.cylinder, held.p_supply, held.f_ext);
-        let i_cmd = physics.current_command(&held);
-        physics.equilibrium(i_cmd, held.rail, start_time);
-        Ok(physics)
+        let actuator = Actuator::start(params, inputs, start_time)?;
+        let integrator = ChosenIntegrator::new(params.solver_method, &actuator);
+        Ok(Physics { actuator, integrator, resting: None })
     }
 
     /// Builds ahead the propagators that a first step of `step` seconds with these inputs
     /// needs, and the whole segments' that the steps after a command change use, so that the
     /// first doSteps cost what the others do (a hardware-in-the-loop run's slowest step was
-    /// its first; the gait's second built the loop period's). Only the propagator cache
-    /// changes: a probe takes the step and hands its cache back; a probe that fails leaves
-    /// nothing.
+    /// its first; the gait's second built the loop period's). Only the integrator's caches
+    /// change: a probe takes the step and hands what it built back; a probe that fails
+    /// leaves nothing.
     pub fn prepare_first_step(&mut self, inputs: &Inputs, t_start: f64, step: f64) {
         // On the heap: two instances' worth of stack is more than some importers' threads have.
         let mut probe = Box::new(self.clone());
         if probe.advance(inputs, t_start, step).is_ok() {
-            probe.build_whole_segment_propagators(step);
-            self.cache = probe.cache;
+            let Physics { actuator, integrator, .. } = &mut *probe;
+            integrator.prepare(actuator, step);
+            self.integrator.adopt_prepared(probe.integrator);
         }
-    }
-
-    /// The coil current command: the input, or the outer loop's output.
-    fn current_command(&self, inputs: &Held) -> f64 {
-        if self.params.loops.mode == ControlMode::Current {
-            inputs.i_ref
-        } else {
-            self.outer.command
-        }
-    }
-
-    fn equilibrium(&mut self, i_ref: f64, vmax: f64, start_time: f64) {
-        let p = self.params;
-        let mut z = Vector::zeros();
-        z[IREF] = i_ref;
-        z[VMAX] = vmax;
-        z[ONE] = 1.0;
-        let u = (p.r_total * i_ref).clamp(-vmax, vmax);
-        z[U] = u;
-        z[I] =
-            if p.driver == DriverKind::IdealCurrent { i_ref } else { coil::steady_current(&p, u) };
-        // An unsaturated PI holds e = 0 with ui = u; a saturated one sits at the rail with
-        // its integrator stopped at the rail value.
-        z[UI] = u;
-        (z[XF], z[XS]) = valve::equilibrium(&p, z[I]);
-        if p.driver == DriverKind::HBridge {
-            // The average bridge voltage holds the current; the PWM starts at the next period.
-            self.digital =
-                Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_ref, vmax, start_time);
-            z[U] = self.digital.output(vmax);
-        }
-        self.settle(&mut z);
-        self.z = z;
-    }
-
-    /// Chooses the stops and driver mode consistent with `z`, puts `z` on them and makes
-    /// their system the active one. Returns whether anything changed.
-    fn settle(&mut self, z: &mut Vector) -> bool {
-        let stops = valve::settle_stops(&self.params, &self.systems[0].a, z);
-        let systems = &self.systems;
-        let mode = driver::consistent_mode(&self.params, z, |m| &systems[m.index()].a);
-        driver::project_onto(&self.params, &self.digital, z, mode);
-        let changed = (mode, stops) != (self.mode, self.stops);
-        if changed {
-            (self.mode, self.stops) = (mode, stops);
-            // Without stops the mode's own system serves (see `evolve`): no 1.8 kB copy.
-            if valve::has_stops(&self.params) {
-                self.active = self.systems[mode.index()].with_stops(&self.params, stops);
-            }
-        }
-        changed
     }
 
     /// The work done so far.
     pub fn work(&self) -> Work {
-        Work { exponentials: self.cache.exponentials, ..self.work }
+        let mut work = self.actuator.work;
+        self.integrator.count_work(&mut work);
+        work
     }
 
     /// The outputs at the current state.
     pub fn outputs(&self) -> Outputs {
-        let z = &self.z;
-        let mut out = Outputs {
-            i_coil: z[I],
-            u_driver: z[U],
-            driver_saturated: driver::saturated(&self.params, self.mode, &self.digital, z),
-            x_flapper: z[XF],
-            x_spool: z[XS],
-            q_valve: valve::no_load_flow(&self.params, z[XS]),
-            ..Outputs::default()
-        };
-        let c = &self.params.cylinder;
-        cylinder::write_outputs(c, &self.cylinder.state, z[XS], self.p_supply, &mut out);
-        out
+        self.actuator.outputs()
     }
 }
 
 impl Physics {
-    /// One communication step: [`Physics::advance`] (which refuses, leaving the state as it
+    /// One communication step: `Physics::advance` (which refuses, leaving the state as it
     /// was, a step that ends with the piston through the end of the cylinder) after refusing a
     /// supply at or above the relief valves' setting; reports relief valves that opened.
-    /// `None` for a step that changes nothing ([`Physics::rests`]; its supply passed with the
+    /// `None` for a step that changes nothing (`Physics::rests`; its supply passed with the
     /// step before): the state, and so the outputs, stay as they are.
     pub fn step(
         &mut self,
@@ -378,11 +270,12 @@ impl Physics {
         if self.rests(inputs, step) {
             return Ok(None);
         }
-        let c = &self.params.cylinder;
+        let c = &self.actuator.params.cylinder;
         c.check_supply(inputs.p_supply)?;
-        let relief_before = cylinder::relief_open(c, &self.cylinder.state);
+        let relief_before = cylinder::relief_open(c, &self.actuator.cylinder.state);
         let mut events = self.advance(inputs, t_start, step)?;
-        let relief_after = cylinder::relief_open(&self.params.cylinder, &self.cylinder.state);
+        let a = &self.actuator;
+        let relief_after = cylinder::relief_open(&a.params.cylinder, &a.cylinder.state);
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);
         Ok(Some(events))
     }
@@ -430,7 +323,7 @@ mod tests {
         // The linear mode runs from the step's start pulled back (`slew_end`): through the
         // whole step's propagator, which the step before built.
         assert_eq!(work.exponentials, 0, "no propagator for the rest of the step");
-        assert!(physics.z[I] > 0.5e-4, "the current follows: {} A", physics.z[I]);
+        assert!(physics.actuator.z[I] > 0.5e-4, "the current follows: {} A", physics.actuator.z[I]);
     }
 
     /// The sampling instants `k / f_sample` are rounded, so the sample periods between them
@@ -455,7 +348,7 @@ mod tests {
             }
             physics.step(&inputs(t), t, h).unwrap();
         }
-        assert!(physics.cylinder.state.v.abs() > 1e-3, "the piston moves");
+        assert!(physics.actuator.cylinder.state.v.abs() > 1e-3, "the piston moves");
         assert_eq!(physics.work().exponentials, after_warm_up, "exponentials after the warm-up");
     }
 
@@ -483,8 +376,12 @@ mod tests {
             assert_eq!(physics.work().exponentials, prepared, "exponentials in step {k}");
         }
         // The loop drives the coil toward its command, and the spool opens toward x_ref > 0.
-        assert!(physics.z[I] > 1e-3, "i_coil {} A", physics.z[I]);
-        assert!(physics.z[state::XS] > 0.5e-6, "x_spool {} m", physics.z[state::XS]);
+        assert!(physics.actuator.z[I] > 1e-3, "i_coil {} A", physics.actuator.z[I]);
+        assert!(
+            physics.actuator.z[state::XS] > 0.5e-6,
+            "x_spool {} m",
+            physics.actuator.z[state::XS]
+        );
     }
 
     /// A 100 Hz current sine at 1e-4 s steps: each step's command change ends its slew
@@ -509,7 +406,7 @@ mod tests {
         // One search per step remains: the slew's end, in closed form.
         let searches = physics.work().guard_locations;
         assert!(searches <= 420, "{searches} event searches in 400 steps");
-        assert!(physics.cylinder.state.v.abs() > 1e-3, "the piston moves");
+        assert!(physics.actuator.cylinder.state.v.abs() > 1e-3, "the piston moves");
     }
 
     /// Piece and sub-step counts round up as `ceil` does, saturating at both ends.
@@ -552,9 +449,12 @@ mod tests {
             }
         }
         let [plain, prepared] = &runs;
-        assert!(plain.cylinder.state.x.abs() > 1e-5, "the piston moved");
-        assert_eq!(plain.z.map(f64::to_bits), prepared.z.map(f64::to_bits));
-        assert_eq!(plain.cylinder.state.to_array(), prepared.cylinder.state.to_array());
+        assert!(plain.actuator.cylinder.state.x.abs() > 1e-5, "the piston moved");
+        assert_eq!(plain.actuator.z.map(f64::to_bits), prepared.actuator.z.map(f64::to_bits));
+        assert_eq!(
+            plain.actuator.cylinder.state.to_array(),
+            prepared.actuator.cylinder.state.to_array()
+        );
         assert_eq!(plain.outputs(), prepared.outputs());
     }
 }

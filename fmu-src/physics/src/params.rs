@@ -41,6 +41,22 @@ impl ControlMode {
         [ControlMode::Current, ControlMode::Flow, ControlMode::Position];
 }
 
+/// The integrator the physics steps through between time events (the seam of
+/// `integrator.rs`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SolverMethod {
+    /// Driver, coil and valve exactly (matrix exponentials, state events located to
+    /// rounding), the cylinder by an adaptive Rosenbrock method along the exact spool path:
+    /// results that do not depend on the communication step; work that follows what
+    /// happens in it.
+    Exact,
+}
+
+impl SolverMethod {
+    /// Every method, in the order of their codes.
+    pub const ALL: [SolverMethod; 1] = [SolverMethod::Exact];
+}
+
 /// A continuous PI current loop with a slew-rate limited output (op-amp or industrial).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PiDriverParams {
@@ -167,6 +183,8 @@ pub struct Params {
     pub outer_loop: OuterLoopParams,
     /// Relative tolerance of the cylinder's integrator.
     pub solver_rtol: f64,
+    /// The integrator the physics steps through.
+    pub solver_method: SolverMethod,
 }
 
 /// Inputs, held constant over a communication step.
@@ -260,6 +278,7 @@ impl Params {
             position: [1.0, 0.0, 0.0],
         },
         solver_rtol: 1.0e-7,
+        solver_method: SolverMethod::Exact,
     };
 }
 

@@ -13,16 +13,17 @@ impl Physics {
     /// changes.
     pub fn retune(&mut self, params: &Params, inputs: &Inputs, time: f64) -> Result<(), String> {
         let mut next = Physics::start(params, inputs, time)?;
-        next.digital = self.digital;
-        next.outer = self.outer;
+        let (a, old) = (&mut next.actuator, &self.actuator);
+        a.digital = old.digital;
+        a.outer = old.outer;
         // Not the rest cache: it holds for the old parameters.
-        next.cylinder = DrivenCylinder::new(self.cylinder.state, self.cylinder.memory);
-        next.p_supply = self.p_supply;
+        a.cylinder = DrivenCylinder::new(old.cylinder.state, old.cylinder.memory);
+        a.p_supply = old.p_supply;
         // New gains or limits can make another driver mode (rail, slew) the consistent
         // one for the state reached: choose it again, as for a new command.
-        let mut z = self.z;
-        next.settle(&mut z);
-        next.z = z;
+        let mut z = old.z;
+        a.settle(&mut z);
+        a.z = z;
         *self = next;
         Ok(())
     }

@@ -14,15 +14,15 @@ use crate::bytes::ByteReader;
 
 impl Physics {
     pub fn write_bytes(&self, out: &mut Vec<u8>) {
-        out.push(self.mode.index() as u8);
-        out.push(self.stops.code() as u8);
-        for x in self.z.iter() {
+        let a = &self.actuator;
+        out.push(a.mode.index() as u8);
+        out.push(a.stops.code() as u8);
+        for x in a.z.iter() {
             out.extend_from_slice(&x.to_le_bytes());
         }
-        self.digital.write_bytes(out);
-        self.outer.write_bytes(out);
-        for x in self.cylinder.state.to_array().iter().chain(self.cylinder.memory.to_array().iter())
-        {
+        a.digital.write_bytes(out);
+        a.outer.write_bytes(out);
+        for x in a.cylinder.state.to_array().iter().chain(a.cylinder.memory.to_array().iter()) {
             out.extend_from_slice(&x.to_le_bytes());
         }
     }
@@ -40,11 +40,12 @@ impl Physics {
         let stops = Stops::from_code(r.u8()?)?;
         let mut physics = Physics::start(params, inputs, 0.0)
             .map_err(|e| format!("state holds invalid parameters: {e}"))?;
+        let a = &mut physics.actuator;
         for k in 0..N {
-            physics.z[k] = r.f64()?;
+            a.z[k] = r.f64()?;
         }
-        physics.digital = Digital::read_bytes(r)?;
-        physics.outer = OuterLoop::read_bytes(r)?;
+        a.digital = Digital::read_bytes(r)?;
+        a.outer = OuterLoop::read_bytes(r)?;
         let mut cylinder = [0.0; N_STATES];
         for x in cylinder.iter_mut() {
             *x = r.f64()?;
@@ -58,18 +59,18 @@ impl Physics {
         }
         let memory = IntegratorMemory::from_array(&memory);
         // The tolerance is `solver.rtol`'s, carried in the memory the integrator reads.
-        if memory.rtol != physics.cylinder.memory.rtol {
+        if memory.rtol != a.cylinder.memory.rtol {
             return Err(format!(
                 "state's integrator tolerance {:e} is not its solver.rtol {:e}",
-                memory.rtol, physics.cylinder.memory.rtol
+                memory.rtol, a.cylinder.memory.rtol
             ));
         }
-        physics.cylinder = DrivenCylinder::new(CylinderState::from_array(&cylinder), memory);
-        if !physics.z.iter().all(|x| x.is_finite()) {
+        a.cylinder = DrivenCylinder::new(CylinderState::from_array(&cylinder), memory);
+        if !a.z.iter().all(|x| x.is_finite()) {
             return Err("state holds non-finite values".into());
         }
-        (physics.mode, physics.stops) = (mode, stops);
-        physics.active = physics.systems[mode.index()].with_stops(&physics.params, stops);
+        (a.mode, a.stops) = (mode, stops);
+        a.active = a.systems[mode.index()].with_stops(&a.params, stops);
         Ok(physics)
     }
 }

@@ -1,0 +1,176 @@
+//! The actuator as every integrator sees it: its coefficients, the mode systems of driver,
+//! coil and valve, and its state (driver mode, valve stops, the augmented state `z`, the
+//! digital loops, the cylinder), with the rules that keep the state consistent with its
+//! mode ([`Actuator::settle`]) and take new commands into it.
+
+use super::*;
+
+/// The model and its state; the integrator that advances it is [`Physics`]'s other half.
+#[derive(Clone)]
+pub(crate) struct Actuator {
+    pub(crate) params: Coefficients,
+    /// Each driver mode's system, the valve free of its stops, in [`MODES`] order.
+    pub(crate) systems: [ModeSystem; MODES.len()],
+    pub(crate) z: Vector,
+    pub(crate) mode: Mode,
+    pub(crate) stops: valve::Stops,
+    /// The system of (mode, stops) when the valve has travel stops (without, the mode's
+    /// own system in `systems` serves: [`current_system`]).
+    pub(crate) active: ModeSystem,
+    /// Discrete state of the H-bridge's digital loop and PWM.
+    pub(crate) digital: Digital,
+    pub(crate) outer: OuterLoop,
+    pub(crate) cylinder: DrivenCylinder,
+    /// Supply pressure of the last step (the port flows depend on it).
+    pub(crate) p_supply: f64,
+    /// The work counted so far (the integrator's own counters aside: [`Physics::work`]).
+    pub(crate) work: Work,
+}
+
+/// The system of each driver mode for the coefficients `c`; refused where the parameters
+/// overflow them.
+pub(crate) fn mode_systems(c: &Coefficients) -> Result<[ModeSystem; MODES.len()], String> {
+    let systems = MODES.map(|m| mode_system(c, m));
+    if !systems.iter().all(|s| s.a.iter().all(|x| x.is_finite()) && s.radius.is_finite()) {
+        return Err(format!(
+            "the parameters give a model too stiff to represent (coefficients like (coil.R + coil.R_sense)/coil.L = {:e} 1/s, \
+             valve.f_n, coil.K_b/coil.L overflow); use physically sized values",
+            c.r_total / c.inductance
+        ));
+    }
+    Ok(systems)
+}
+
+impl Actuator {
+    /// Builds the mode systems and puts the model in equilibrium for `inputs` at
+    /// `start_time` (the sampling clocks of the digital loops count from time 0).
+    pub(crate) fn start(
+        params: &Params,
+        inputs: &Inputs,
+        start_time: f64,
+    ) -> Result<Actuator, String> {
+        let rtol = params.solver_rtol;
+        let params = Coefficients::new(params)?;
+        let systems = mode_systems(&params)?;
+        let mut actuator = Actuator {
+            params,
+            systems,
+            z: Vector::zeros(),
+            mode: Mode::Linear,
+            stops: valve::Stops::default(),
+            active: systems[Mode::Linear.index()],
+            digital: Digital::default(),
+            outer: OuterLoop::default(),
+            cylinder: DrivenCylinder::new(CylinderState::default(), IntegratorMemory::new(rtol)),
+            p_supply: inputs.p_supply,
+            work: Work::default(),
+        };
+        let held = Held::new(&params, inputs);
+        params.cylinder.check_supply(held.p_supply)?;
+        actuator.outer = OuterLoop::at_start(&params.loops, held.reference, start_time);
+        actuator.cylinder.state =
+            cylinder::equilibrium(&params.cylinder, held.p_supply, held.f_ext);
+        let i_cmd = actuator.current_command(&held);
+        actuator.equilibrium(i_cmd, held.rail, start_time);
+        Ok(actuator)
+    }
+
+    /// The coil current command: the input, or the outer loop's output.
+    pub(crate) fn current_command(&self, inputs: &Held) -> f64 {
+        if self.params.loops.mode == ControlMode::Current {
+            inputs.i_ref
+        } else {
+            self.outer.command
+        }
+    }
+
+    fn equilibrium(&mut self, i_ref: f64, vmax: f64, start_time: f64) {
+        let p = self.params;
+        let mut z = Vector::zeros();
+        z[IREF] = i_ref;
+        z[VMAX] = vmax;
+        z[ONE] = 1.0;
+        let u = (p.r_total * i_ref).clamp(-vmax, vmax);
+        z[U] = u;
+        z[I] =
+            if p.driver == DriverKind::IdealCurrent { i_ref } else { coil::steady_current(&p, u) };
+        // An unsaturated PI holds e = 0 with ui = u; a saturated one sits at the rail with
+        // its integrator stopped at the rail value.
+        z[UI] = u;
+        (z[XF], z[XS]) = valve::equilibrium(&p, z[I]);
+        if p.driver == DriverKind::HBridge {
+            // The average bridge voltage holds the current; the PWM starts at the next period.
+            self.digital =
+                Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_ref, vmax, start_time);
+            z[U] = self.digital.output(vmax);
+        }
+        self.settle(&mut z);
+        self.z = z;
+    }
+
+    /// Chooses the stops and driver mode consistent with `z`, puts `z` on them and makes
+    /// their system the active one. Returns whether anything changed.
+    pub(crate) fn settle(&mut self, z: &mut Vector) -> bool {
+        let stops = valve::settle_stops(&self.params, &self.systems[0].a, z);
+        let systems = &self.systems;
+        let mode = driver::consistent_mode(&self.params, z, |m| &systems[m.index()].a);
+        driver::project_onto(&self.params, &self.digital, z, mode);
+        let changed = (mode, stops) != (self.mode, self.stops);
+        if changed {
+            (self.mode, self.stops) = (mode, stops);
+            // Without stops the mode's own system serves (see `current_system`): no 1.8 kB copy.
+            if valve::has_stops(&self.params) {
+                self.active = self.systems[mode.index()].with_stops(&self.params, stops);
+            }
+        }
+        changed
+    }
+
+    /// Takes a new current command or rail into the state. A state that ended the last step
+    /// is consistent with its mode; only a new command or rail (or a restored state) needs
+    /// the mode chosen again.
+    pub(crate) fn follow_command(&mut self, inputs: &Held, events: &mut StepEvents) {
+        let i_cmd = self.current_command(inputs);
+        if self.z[IREF] != i_cmd || self.z[VMAX] != inputs.rail {
+            let mut z = self.z;
+            driver::apply_inputs(&self.params, &mut z, i_cmd, inputs.rail);
+            let before = self.mode;
+            self.settle(&mut z);
+            driver::count_switch(events, before, self.mode);
+            self.z = z;
+        }
+    }
+
+    /// The outputs at the current state.
+    pub(crate) fn outputs(&self) -> Outputs {
+        let z = &self.z;
+        let mut out = Outputs {
+            i_coil: z[I],
+            u_driver: z[U],
+            driver_saturated: driver::saturated(&self.params, self.mode, &self.digital, z),
+            x_flapper: z[XF],
+            x_spool: z[XS],
+            q_valve: valve::no_load_flow(&self.params, z[XS]),
+            ..Outputs::default()
+        };
+        let c = &self.params.cylinder;
+        cylinder::write_outputs(c, &self.cylinder.state, z[XS], self.p_supply, &mut out);
+        out
+    }
+}
+
+/// The system `mode` runs on: its own without travel stops, else the one with the stops
+/// that hold now ([`Actuator::settle`] keeps it as `active`). Over the fields, so that the
+/// caller may still borrow the cylinder and its own caches.
+pub(crate) fn current_system<'a>(
+    params: &Coefficients,
+    active: &'a ModeSystem,
+    systems: &'a [ModeSystem; MODES.len()],
+    mode: Mode,
+) -> &'a ModeSystem {
+    if valve::has_stops(params) {
+        active
+    } else {
+        &systems[mode.index()]
+    }
+}
