@@ -10,7 +10,7 @@
 //!
 //! The test suite runs it for 3 s with a fixed seed (`cargo test -p ehsv-tests --bin fuzz`).
 
-use std::ffi::{c_char, c_int, c_void, CString};
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::ptr::{null, null_mut};
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
@@ -84,7 +84,7 @@ extern "C" fn fmi2_log(
 ) {
     assert!((0..=4).contains(&status));
     // SAFETY: the FMU passes a C string. FMI 2 messages are printf formats: no lone '%'.
-    let msg = unsafe { std::ffi::CStr::from_ptr(msg) }.to_bytes();
+    let msg = unsafe { CStr::from_ptr(msg) }.to_bytes();
     let mut run = 0;
     for &b in msg.iter().chain(b" ") {
         if b == b'%' {
@@ -207,6 +207,9 @@ impl Fuzzer {
         (n, vrs, vals, self.rng.chance(10))
     }
 
+    /// One FMI call chosen at random, with a random time and step size for the calls
+    /// that take them. Each call draws from the generator in a fixed order, so a seed
+    /// replays the same sequence.
     fn one_call(&mut self) {
         self.calls += 1;
         let fmi3 = self.rng.chance(2);
@@ -216,236 +219,294 @@ impl Fuzzer {
         for (slot, v) in LAST.iter().zip([action as u64, t.to_bits(), h.to_bits()]) {
             slot.store(v, Relaxed);
         }
+        match action {
+            0 | 1 => self.instantiate(fmi3),
+            2 => self.free_one(),
+            3 => self.enter_initialization(fmi3, t, h),
+            4 => self.exit_initialization(fmi3),
+            5..=9 => self.do_step(fmi3, t, h),
+            10 => self.terminate(fmi3),
+            11 => self.reset(fmi3),
+            12..=14 => self.set_values(fmi3),
+            15..=17 => self.get_values(fmi3),
+            18 => self.set_debug_logging(fmi3),
+            19 | 20 => self.get_state(fmi3),
+            21 => self.set_state(fmi3),
+            22 => self.free_state(fmi3),
+            23 | 24 => self.serialize(fmi3),
+            25..=27 => self.deserialize(fmi3),
+            28 => self.fmi2_status_queries(),
+            29 => self.unsupported_functions(fmi3),
+            30 => self.model_exchange_and_version_queries(),
+            _ => self.other_fmi3_types(),
+        }
+    }
+
+    /// A new instance (kept while it lives), or, with 12 alive, a freed one instead.
+    fn instantiate(&mut self, fmi3: bool) {
+        if self.instances.len() >= 12 {
+            return self.free_one();
+        }
+        let (name, token) = (self.name(), self.token());
+        let name_ptr = if self.rng.chance(20) { null() } else { name.as_ptr() };
+        let i = if fmi3 {
+            self.instantiate_fmi3(name_ptr, &token)
+        } else {
+            self.instantiate_fmi2(name_ptr, &token)
+        };
+        if !i.is_null() {
+            self.instances.push((fmi3, i));
+        }
+    }
+
+    /// fmi3InstantiateCoSimulation, sometimes without a logger or asking for event mode.
+    fn instantiate_fmi3(&mut self, name: *const c_char, token: &CStr) -> *mut c_void {
+        let log = if self.rng.chance(4) { None } else { Some(fmi3_log as _) };
+        let event_mode = self.rng.chance(10);
         unsafe {
-            match action {
-                0 | 1 => {
-                    if self.instances.len() >= 12 {
-                        return self.free_one();
-                    }
-                    let (name, token) = (self.name(), self.token());
-                    let name_ptr = if self.rng.chance(20) { null() } else { name.as_ptr() };
-                    let i = if fmi3 {
-                        let log = if self.rng.chance(4) { None } else { Some(fmi3_log as _) };
-                        let event_mode = self.rng.chance(10);
-                        fmi3InstantiateCoSimulation(
-                            name_ptr,
-                            token.as_ptr(),
-                            null(),
-                            false,
-                            self.rng.chance(2),
-                            event_mode,
-                            false,
-                            null(),
-                            0,
-                            null_mut(),
-                            log,
-                            None,
-                        )
-                    } else {
-                        let mut cb = CALLBACKS;
-                        cb.logger = (!self.rng.chance(4)).then(fmi2_logger);
-                        let cb_ptr = if self.rng.chance(10) { null() } else { &cb as *const _ };
-                        let ty =
-                            if self.rng.chance(10) { fmi2ModelExchange } else { fmi2CoSimulation };
-                        fmi2Instantiate(
-                            name_ptr,
-                            ty,
-                            token.as_ptr(),
-                            null(),
-                            cb_ptr,
-                            0,
-                            self.rng.chance(2) as c_int,
-                        )
-                    };
-                    if !i.is_null() {
-                        self.instances.push((fmi3, i));
-                    }
-                }
-                2 => self.free_one(),
-                3 => {
-                    let i = self.instance(fmi3);
-                    let stop = t.abs() + h;
-                    check(if fmi3 {
-                        fmi3EnterInitializationMode(i, false, 0.0, t, self.rng.chance(2), stop)
-                    } else {
-                        let s =
-                            fmi2SetupExperiment(i, 0, 0.0, t, self.rng.chance(2) as c_int, stop);
-                        check(s);
-                        fmi2EnterInitializationMode(i)
-                    })
-                }
-                4 => check(if fmi3 {
-                    fmi3ExitInitializationMode(self.instance(fmi3))
-                } else {
-                    fmi2ExitInitializationMode(self.instance(fmi3))
-                }),
-                5..=9 => {
-                    let i = self.instance(fmi3);
-                    // Mostly at the instance's own time, so steps succeed and the model moves on.
-                    let now = if self.rng.chance(5) { t } else { self.current_time(i, fmi3) };
-                    check_step(if fmi3 {
-                        let (mut a, mut b, mut c, mut d) = (false, false, false, 0.0);
-                        let p =
-                            |r: &mut Rng, x: *mut bool| if r.chance(20) { null_mut() } else { x };
-                        let (pa, pb, pc) = (
-                            p(&mut self.rng, &mut a),
-                            p(&mut self.rng, &mut b),
-                            p(&mut self.rng, &mut c),
-                        );
-                        fmi3DoStep(i, now, h, self.rng.chance(2), pa, pb, pc, &mut d)
-                    } else {
-                        fmi2DoStep(i, now, h, self.rng.chance(2) as c_int)
-                    })
-                }
-                10 => check(if fmi3 {
-                    fmi3Terminate(self.instance(fmi3))
-                } else {
-                    fmi2Terminate(self.instance(fmi3))
-                }),
-                11 => check(if fmi3 {
-                    fmi3Reset(self.instance(fmi3))
-                } else {
-                    fmi2Reset(self.instance(fmi3))
-                }),
-                12..=14 => self.set_values(fmi3),
-                15..=17 => self.get_values(fmi3),
-                18 => {
-                    let names: Vec<CString> = (0..self.rng.below(4))
-                        .map(|_| {
-                            let known = LOG_CATEGORIES[self.rng.below(LOG_CATEGORIES.len())].0;
-                            CString::new(if self.rng.chance(5) { "logNonsense%s" } else { known })
-                                .unwrap()
-                        })
-                        .collect();
-                    let mut ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
-                    if self.rng.chance(10) && !ptrs.is_empty() {
-                        ptrs[0] = null();
-                    }
-                    let arr = if self.rng.chance(10) { null() } else { ptrs.as_ptr() };
-                    let i = self.instance(fmi3);
-                    check(if fmi3 {
-                        fmi3SetDebugLogging(i, self.rng.chance(2), ptrs.len(), arr)
-                    } else {
-                        fmi2SetDebugLogging(i, self.rng.chance(2) as c_int, ptrs.len(), arr)
-                    })
-                }
-                19 | 20 => {
-                    let i = self.instance(fmi3);
-                    let mut s: *mut c_void =
-                        if self.rng.chance(3) { self.state() } else { null_mut() };
-                    let reused = !s.is_null();
-                    let slot = if self.rng.chance(20) { null_mut() } else { &mut s as *mut _ };
-                    let status =
-                        if fmi3 { fmi3GetFMUState(i, slot) } else { fmi2GetFMUstate(i, slot) };
-                    check(status);
-                    if status == Status::OK && !reused && !s.is_null() {
-                        self.states.push((i, s));
-                    }
-                }
-                21 => {
-                    let (i, s) = (self.instance(fmi3), self.state());
-                    check(if fmi3 { fmi3SetFMUState(i, s) } else { fmi2SetFMUstate(i, s) })
-                }
-                22 => {
-                    if self.states.is_empty() {
-                        return;
-                    }
-                    let k = self.rng.below(self.states.len());
-                    let (owner, mut s) = self.states[k];
-                    let i = if self.rng.chance(2) { owner } else { self.instance(fmi3) };
-                    let status = if fmi3 {
-                        fmi3FreeFMUState(i, &mut s)
-                    } else {
-                        fmi2FreeFMUstate(i, &mut s)
-                    };
-                    check(status);
-                    if status == Status::OK {
-                        assert!(s.is_null());
-                        assert_eq!(i, owner, "a state was freed through an instance not its own");
-                        self.states.swap_remove(k);
-                    }
-                }
-                23 | 24 => self.serialize(fmi3),
-                25..=27 => self.deserialize(fmi3),
-                28 => {
-                    let i = self.instance(false);
-                    let (mut r, mut b, mut n, mut st, mut s) = (0.0, 0, 0, Status::OK, null());
-                    let kind = self.rng.below(6) as c_int - 1;
-                    check(match self.rng.below(6) {
-                        0 => fmi2GetStatus(
-                            i,
-                            kind,
-                            if self.rng.chance(5) { null_mut() } else { &mut st },
-                        ),
-                        1 => fmi2GetRealStatus(
-                            i,
-                            kind,
-                            if self.rng.chance(5) { null_mut() } else { &mut r },
-                        ),
-                        2 => fmi2GetIntegerStatus(i, kind, &mut n),
-                        3 => fmi2GetBooleanStatus(i, kind, &mut b),
-                        4 => fmi2GetStringStatus(i, kind, &mut s),
-                        _ => fmi2CancelStep(i),
-                    })
-                }
-                29 => {
-                    let i = self.instance(fmi3);
-                    let (mut x, mut n, mut b) = (0.0, 0usize, false);
-                    check(match (fmi3, self.rng.below(4)) {
-                        (false, 0) => fmi2GetDirectionalDerivative(i, &1, 1, &2, 1, &1.0, &mut x),
-                        (false, 1) => fmi2SetRealInputDerivatives(i, &1, 1, &1, &1.0),
-                        (false, _) => fmi2GetRealOutputDerivatives(i, &1, 1, &1, &mut x),
-                        (true, 0) => fmi3EnterEventMode(i),
-                        (true, 1) => fmi3GetNumberOfContinuousStates(i, &mut n),
-                        (true, 2) => fmi3UpdateDiscreteStates(
-                            i, &mut b, &mut b, &mut b, &mut b, &mut b, &mut x,
-                        ),
-                        (true, _) => {
-                            fmi3GetDirectionalDerivative(i, &1, 1, &2, 1, &1.0, 1, &mut x, 1)
-                        }
-                    })
-                }
-                30 => {
-                    // Other instantiation functions and free functions.
-                    let (name, token) = (self.name(), self.token());
-                    let i = fmi3InstantiateModelExchange(
-                        name.as_ptr(),
-                        token.as_ptr(),
-                        null(),
-                        false,
-                        false,
-                        null_mut(),
-                        Some(fmi3_log),
-                    );
-                    assert!(i.is_null());
-                    assert!(
-                        !fmi2GetVersion().is_null()
-                            && !fmi3GetVersion().is_null()
-                            && !fmi2GetTypesPlatform().is_null()
-                    );
-                }
-                _ => {
-                    // The other FMI 3 types (no variables of them: any reference is an error).
-                    let i = self.instance(true);
-                    let (n, vrs, _, null_vr) = self.arrays();
-                    let vr = if null_vr { null() } else { vrs.as_ptr() };
-                    let nv = if self.rng.chance(5) { self.rng.below(5) } else { n };
-                    let mut buf = [0u64; 8];
-                    let mut strings = [null::<c_char>(); 8];
-                    let mut sizes = [0usize; 8];
-                    let mut bins = [null::<u8>(); 8];
-                    check(match self.rng.below(8) {
-                        0 => fmi3GetFloat32(i, vr, n, buf.as_mut_ptr().cast(), nv),
-                        1 => fmi3SetInt8(i, vr, n, buf.as_ptr().cast(), nv),
-                        2 => fmi3GetUInt16(i, vr, n, buf.as_mut_ptr().cast(), nv),
-                        3 => fmi3SetInt32(i, vr, n, buf.as_ptr().cast(), nv),
-                        4 => fmi3GetUInt64(i, vr, n, buf.as_mut_ptr(), nv),
-                        5 => fmi3GetString(i, vr, n, strings.as_mut_ptr(), nv),
-                        6 => fmi3GetBinary(i, vr, n, sizes.as_mut_ptr(), bins.as_mut_ptr(), nv),
-                        _ => fmi3GetClock(i, vr, n, buf.as_mut_ptr().cast()),
-                    })
-                }
+            fmi3InstantiateCoSimulation(
+                name,
+                token.as_ptr(),
+                null(),
+                false,
+                self.rng.chance(2),
+                event_mode,
+                false,
+                null(),
+                0,
+                null_mut(),
+                log,
+                None,
+            )
+        }
+    }
+
+    /// fmi2Instantiate, sometimes without a logger or callbacks, or for Model Exchange.
+    fn instantiate_fmi2(&mut self, name: *const c_char, token: &CStr) -> *mut c_void {
+        let mut cb = CALLBACKS;
+        cb.logger = (!self.rng.chance(4)).then(fmi2_logger);
+        let cb_ptr = if self.rng.chance(10) { null() } else { &cb as *const _ };
+        let ty = if self.rng.chance(10) { fmi2ModelExchange } else { fmi2CoSimulation };
+        unsafe {
+            fmi2Instantiate(
+                name,
+                ty,
+                token.as_ptr(),
+                null(),
+                cb_ptr,
+                0,
+                self.rng.chance(2) as c_int,
+            )
+        }
+    }
+
+    /// Enters initialization mode at start time `t` (FMI 2: after fmi2SetupExperiment).
+    fn enter_initialization(&mut self, fmi3: bool, t: f64, h: f64) {
+        let i = self.instance(fmi3);
+        let stop = t.abs() + h;
+        unsafe {
+            check(if fmi3 {
+                fmi3EnterInitializationMode(i, false, 0.0, t, self.rng.chance(2), stop)
+            } else {
+                let s = fmi2SetupExperiment(i, 0, 0.0, t, self.rng.chance(2) as c_int, stop);
+                check(s);
+                fmi2EnterInitializationMode(i)
+            })
+        }
+    }
+
+    fn exit_initialization(&mut self, fmi3: bool) {
+        let i = self.instance(fmi3);
+        unsafe {
+            check(if fmi3 { fmi3ExitInitializationMode(i) } else { fmi2ExitInitializationMode(i) })
+        }
+    }
+
+    /// A step of `h`, mostly from the instance's own time, so steps succeed and the model
+    /// moves on; sometimes from `t`.
+    fn do_step(&mut self, fmi3: bool, t: f64, h: f64) {
+        let i = self.instance(fmi3);
+        let now = if self.rng.chance(5) { t } else { unsafe { self.current_time(i, fmi3) } };
+        check_step(if fmi3 {
+            self.fmi3_do_step(i, now, h)
+        } else {
+            unsafe { fmi2DoStep(i, now, h, self.rng.chance(2) as c_int) }
+        })
+    }
+
+    /// fmi3DoStep, sometimes with NULL for one of its flags out.
+    fn fmi3_do_step(&mut self, i: *mut c_void, now: f64, h: f64) -> Status {
+        let (mut a, mut b, mut c, mut d) = (false, false, false, 0.0);
+        let p = |r: &mut Rng, x: *mut bool| if r.chance(20) { null_mut() } else { x };
+        let (pa, pb, pc) =
+            (p(&mut self.rng, &mut a), p(&mut self.rng, &mut b), p(&mut self.rng, &mut c));
+        unsafe { fmi3DoStep(i, now, h, self.rng.chance(2), pa, pb, pc, &mut d) }
+    }
+
+    fn terminate(&mut self, fmi3: bool) {
+        let i = self.instance(fmi3);
+        unsafe { check(if fmi3 { fmi3Terminate(i) } else { fmi2Terminate(i) }) }
+    }
+
+    fn reset(&mut self, fmi3: bool) {
+        let i = self.instance(fmi3);
+        unsafe { check(if fmi3 { fmi3Reset(i) } else { fmi2Reset(i) }) }
+    }
+
+    /// Known and unknown log categories, sometimes a NULL name or a NULL array.
+    fn set_debug_logging(&mut self, fmi3: bool) {
+        let names: Vec<CString> = (0..self.rng.below(4))
+            .map(|_| {
+                let known = LOG_CATEGORIES[self.rng.below(LOG_CATEGORIES.len())].0;
+                CString::new(if self.rng.chance(5) { "logNonsense%s" } else { known }).unwrap()
+            })
+            .collect();
+        let mut ptrs: Vec<*const c_char> = names.iter().map(|n| n.as_ptr()).collect();
+        if self.rng.chance(10) && !ptrs.is_empty() {
+            ptrs[0] = null();
+        }
+        let arr = if self.rng.chance(10) { null() } else { ptrs.as_ptr() };
+        let i = self.instance(fmi3);
+        unsafe {
+            check(if fmi3 {
+                fmi3SetDebugLogging(i, self.rng.chance(2), ptrs.len(), arr)
+            } else {
+                fmi2SetDebugLogging(i, self.rng.chance(2) as c_int, ptrs.len(), arr)
+            })
+        }
+    }
+
+    /// Gets a new FMU state (kept with its owner), or into an existing or junk one.
+    fn get_state(&mut self, fmi3: bool) {
+        let i = self.instance(fmi3);
+        let mut s: *mut c_void = if self.rng.chance(3) { self.state() } else { null_mut() };
+        let reused = !s.is_null();
+        let slot = if self.rng.chance(20) { null_mut() } else { &mut s as *mut _ };
+        let status = unsafe {
+            if fmi3 {
+                fmi3GetFMUState(i, slot)
+            } else {
+                fmi2GetFMUstate(i, slot)
             }
+        };
+        check(status);
+        if status == Status::OK && !reused && !s.is_null() {
+            self.states.push((i, s));
+        }
+    }
+
+    fn set_state(&mut self, fmi3: bool) {
+        let (i, s) = (self.instance(fmi3), self.state());
+        unsafe { check(if fmi3 { fmi3SetFMUState(i, s) } else { fmi2SetFMUstate(i, s) }) }
+    }
+
+    /// Frees a live state through its owner or another instance: only the owner may.
+    fn free_state(&mut self, fmi3: bool) {
+        if self.states.is_empty() {
+            return;
+        }
+        let k = self.rng.below(self.states.len());
+        let (owner, mut s) = self.states[k];
+        let i = if self.rng.chance(2) { owner } else { self.instance(fmi3) };
+        let status = unsafe {
+            if fmi3 {
+                fmi3FreeFMUState(i, &mut s)
+            } else {
+                fmi2FreeFMUstate(i, &mut s)
+            }
+        };
+        check(status);
+        if status == Status::OK {
+            assert!(s.is_null());
+            assert_eq!(i, owner, "a state was freed through an instance not its own");
+            self.states.swap_remove(k);
+        }
+    }
+
+    /// FMI 2's status queries of every kind (and some that are no kind), sometimes into
+    /// NULL, and fmi2CancelStep.
+    fn fmi2_status_queries(&mut self) {
+        let i = self.instance(false);
+        let (mut r, mut b, mut n, mut st, mut s) = (0.0, 0, 0, Status::OK, null());
+        let kind = self.rng.below(6) as c_int - 1;
+        unsafe {
+            check(match self.rng.below(6) {
+                0 => fmi2GetStatus(i, kind, if self.rng.chance(5) { null_mut() } else { &mut st }),
+                1 => {
+                    fmi2GetRealStatus(i, kind, if self.rng.chance(5) { null_mut() } else { &mut r })
+                }
+                2 => fmi2GetIntegerStatus(i, kind, &mut n),
+                3 => fmi2GetBooleanStatus(i, kind, &mut b),
+                4 => fmi2GetStringStatus(i, kind, &mut s),
+                _ => fmi2CancelStep(i),
+            })
+        }
+    }
+
+    /// Functions of capabilities the FMU does not declare (derivatives, event mode,
+    /// continuous states): they must refuse, not crash.
+    fn unsupported_functions(&mut self, fmi3: bool) {
+        let i = self.instance(fmi3);
+        let (mut x, mut n, mut b) = (0.0, 0usize, false);
+        unsafe {
+            check(match (fmi3, self.rng.below(4)) {
+                (false, 0) => fmi2GetDirectionalDerivative(i, &1, 1, &2, 1, &1.0, &mut x),
+                (false, 1) => fmi2SetRealInputDerivatives(i, &1, 1, &1, &1.0),
+                (false, _) => fmi2GetRealOutputDerivatives(i, &1, 1, &1, &mut x),
+                (true, 0) => fmi3EnterEventMode(i),
+                (true, 1) => fmi3GetNumberOfContinuousStates(i, &mut n),
+                (true, 2) => {
+                    fmi3UpdateDiscreteStates(i, &mut b, &mut b, &mut b, &mut b, &mut b, &mut x)
+                }
+                (true, _) => fmi3GetDirectionalDerivative(i, &1, 1, &2, 1, &1.0, 1, &mut x, 1),
+            })
+        }
+    }
+
+    /// The other instantiation function (Model Exchange: refused) and the functions that
+    /// take no instance.
+    fn model_exchange_and_version_queries(&mut self) {
+        let (name, token) = (self.name(), self.token());
+        unsafe {
+            let i = fmi3InstantiateModelExchange(
+                name.as_ptr(),
+                token.as_ptr(),
+                null(),
+                false,
+                false,
+                null_mut(),
+                Some(fmi3_log),
+            );
+            assert!(i.is_null());
+            assert!(
+                !fmi2GetVersion().is_null()
+                    && !fmi3GetVersion().is_null()
+                    && !fmi2GetTypesPlatform().is_null()
+            );
+        }
+    }
+
+    /// The other FMI 3 types (no variables of them: any reference is an error).
+    fn other_fmi3_types(&mut self) {
+        let i = self.instance(true);
+        let (n, vrs, _, null_vr) = self.arrays();
+        let vr = if null_vr { null() } else { vrs.as_ptr() };
+        let nv = if self.rng.chance(5) { self.rng.below(5) } else { n };
+        let mut buf = [0u64; 8];
+        let mut strings = [null::<c_char>(); 8];
+        let mut sizes = [0usize; 8];
+        let mut bins = [null::<u8>(); 8];
+        unsafe {
+            check(match self.rng.below(8) {
+                0 => fmi3GetFloat32(i, vr, n, buf.as_mut_ptr().cast(), nv),
+                1 => fmi3SetInt8(i, vr, n, buf.as_ptr().cast(), nv),
+                2 => fmi3GetUInt16(i, vr, n, buf.as_mut_ptr().cast(), nv),
+                3 => fmi3SetInt32(i, vr, n, buf.as_ptr().cast(), nv),
+                4 => fmi3GetUInt64(i, vr, n, buf.as_mut_ptr(), nv),
+                5 => fmi3GetString(i, vr, n, strings.as_mut_ptr(), nv),
+                6 => fmi3GetBinary(i, vr, n, sizes.as_mut_ptr(), bins.as_mut_ptr(), nv),
+                _ => fmi3GetClock(i, vr, n, buf.as_mut_ptr().cast()),
+            })
         }
     }
 
