@@ -34,7 +34,9 @@ use std::process::ExitCode;
 
 use ehsv_actuator::variables::{vr, VARIABLES};
 use fmi::{Fmu, Version};
+use reference::Trace;
 use report::{PeerSummary, Row};
+use timing::{Samples, Summary};
 use workloads::{Signal, Workload, I_AMPLITUDE};
 
 /// An output further than this fraction of its range from the reference (and further than
@@ -151,115 +153,77 @@ fn measure(
     h: f64,
     problems: &mut Vec<String>,
 ) -> Result<Vec<Row>, String> {
-    let steps = (o.t_end / h).round() as usize;
-    let sim_time = steps as f64 * h;
-    let reference = reference::run(w, w.legs[0], h, steps, o.reference_rtol)?;
-    // How far the yardstick itself is converged: the same run 10x tighter.
-    let tighter = reference::run(w, w.legs[0], h, steps, 0.1 * o.reference_rtol)?;
-    let reference_spread = report::worst(&reference::deviation(&reference, &tighter));
-    // How much looser the FMU integrates than the reference (see the deviation check below).
-    let looser =
-        (o.fmu_rtol.unwrap_or(VARIABLES[vr::SOLVER_RTOL].start) / o.reference_rtol).max(1.0);
-    let work = report::WorkSummary::new(&reference::fmu_work(w, w.legs[0], h, steps)?, steps);
+    let case = Case::new(o, w, h)?;
     let mut rows = Vec::new();
-    let mut first_trace: Option<reference::Trace> = None;
+    let mut first_trace: Option<Trace> = None;
     for fmu in fmus {
-        let mut best: Option<fmu_run::FmuRun> = None;
-        for _ in 0..o.repeat {
-            let r = fmu_run::run(fmu, w, h, steps, false)?;
-            if best.as_ref().is_none_or(|b| r.wall < b.wall) {
-                best = Some(r);
-            }
-        }
-        let best = best.unwrap();
-        // Timed runs: the first run's slowest calls show what this machine did to them; the
-        // shortest time of each call over `repeat` runs is the work it takes.
-        let timed = fmu_run::run(fmu, w, h, steps, true)?;
-        let mut least = timed.step_cpu.clone();
-        for _ in 1..o.repeat {
-            least.keep_shorter(&fmu_run::run(fmu, w, h, steps, true)?.step_cpu);
-        }
+        let (row, trace) = case.measure_version(fmu, cvode, first_trace.as_ref(), problems)?;
+        rows.push(row);
+        first_trace.get_or_insert(trace);
+    }
+    Ok(rows)
+}
+
+/// One workload at one step size and the reference its rows are judged against.
+struct Case<'a> {
+    o: &'a Options,
+    w: &'a Workload,
+    h: f64,
+    steps: usize,
+    reference: Trace,
+    /// The worst distance of the reference from the same run 10x tighter.
+    reference_spread: (f64, usize),
+    /// How much looser the FMU integrates than the reference (see `check_deviation`).
+    looser: f64,
+    /// The FMU's integrator work on the run (through the rlib).
+    work: report::WorkSummary,
+}
+
+impl<'a> Case<'a> {
+    fn new(o: &'a Options, w: &'a Workload, h: f64) -> Result<Self, String> {
+        let steps = (o.t_end / h).round() as usize;
+        let reference = reference::run(w, w.legs[0], h, steps, o.reference_rtol)?;
+        // How far the yardstick itself is converged: the same run 10x tighter.
+        let tighter = reference::run(w, w.legs[0], h, steps, 0.1 * o.reference_rtol)?;
+        let reference_spread = report::worst(&reference::deviation(&reference, &tighter));
+        let looser =
+            (o.fmu_rtol.unwrap_or(VARIABLES[vr::SOLVER_RTOL].start) / o.reference_rtol).max(1.0);
+        let work = report::WorkSummary::new(&reference::fmu_work(w, w.legs[0], h, steps)?, steps);
+        Ok(Case { o, w, h, steps, reference, reference_spread, looser, work })
+    }
+
+    /// The row of one FMI version and its outputs. `first_trace` is the outputs of the
+    /// version measured before, if any: the slowest steps are diagnosed and the peer is
+    /// run only with the first version, as either runs the same computation.
+    fn measure_version(
+        &self,
+        fmu: &Fmu,
+        cvode: Option<&peer::Api>,
+        first_trace: Option<&Trace>,
+        problems: &mut Vec<String>,
+    ) -> Result<(Row, Trace), String> {
+        let (w, h) = (self.w, self.h);
+        let best = self.best_untimed_run(fmu)?;
+        let (timed, least) = self.timed_runs(fmu)?;
         let step_cpu = least.summary();
-        // Either FMI version runs the same computation: diagnosed once.
-        let slowest = if first_trace.is_none() {
-            let legs = w.legs.len();
-            let diagnose = |call: usize, cpu: f64| -> Result<report::SlowStep, String> {
-                let (k, leg) = (call / legs, call % legs);
-                let work = reference::work_of_step(w, w.legs[leg], h, k)?;
-                Ok(report::SlowStep { cpu, t: k as f64 * h, leg, work })
-            };
-            // The first step builds the propagators: the slowest after it, too.
-            let later = match least.slowest_from(legs) {
-                Some((call, cpu)) if call != step_cpu.slowest => Some(diagnose(call, cpu)?),
-                _ => None,
-            };
-            Some((diagnose(step_cpu.slowest, step_cpu.max)?, later))
-        } else {
-            None
+        let slowest = match first_trace {
+            None => Some(self.diagnose_slowest(&least, step_cpu)?),
+            Some(_) => None,
         };
-        if let Some(first) = &first_trace {
-            if *first != best.trace {
-                return Err(format!("{}: FMI 2 and FMI 3 outputs differ at h = {h}", w.name));
-            }
+        if first_trace.is_some_and(|first| *first != best.trace) {
+            return Err(format!("{}: FMI 2 and FMI 3 outputs differ at h = {h}", w.name));
         }
-        let deviations = reference::deviation(&best.trace, &reference);
-        let dev = report::worst(&deviations);
-        // Beyond the limit and well beyond what the trajectory's conditioning explains: the
-        // reference moved by its spread for a 10x tighter tolerance, so an FMU that many
-        // times looser may move that much more (hbridge_square_100Hz over 0.5 s: spread
-        // 8.8e-4, the FMU at 1e-7 5.3e-1 off).
-        if dev.0.is_nan() || (dev.0 > DEVIATION_LIMIT && dev.0 > 10.0 * looser * reference_spread.0)
-        {
-            let (k, value, expected) = reference::worst_point(&best.trace, &reference, dev.1);
-            problems.push(format!(
-                "{} {}: {} deviates {:.2e} of its range from the reference, most at t = {:.6} s: {value:e} instead of {expected:e}",
-                fmu.version().label(),
-                w.name,
-                workloads::OUTPUT_NAMES[dev.1],
-                dev.0,
-                (k + 1) as f64 * h
-            ));
-        }
-        // Idle measures the calls alone: an instance whose state moves is doing other work.
-        if w.legs[0] == Signal::Idle {
-            if let Some(k) = best.trace.iter().position(|y| y != &best.trace[0]) {
-                return Err(format!(
-                    "{}: the outputs moved at t = {:.6} s though every input stays 0",
-                    w.name,
-                    (k + 1) as f64 * h
-                ));
-            }
-        }
-        if w.legs[0] == Signal::StepToRest {
-            let i_end = best.trace.last().map_or(f64::NAN, |y| y[0]);
-            if i_end.is_nan() || (i_end - I_AMPLITUDE).abs() > 1e-4 * I_AMPLITUDE {
-                return Err(format!(
-                    "{}: i_coil ended at {i_end} A, expected {I_AMPLITUDE} A",
-                    w.name
-                ));
-            }
-        }
+        let dev = self.check_deviation(fmu, &best.trace, problems);
+        self.check_signal_outcome(&best.trace)?;
         let peer = match cvode.filter(|_| first_trace.is_none()) {
-            Some(api) => Some(run_peer(o, api, w, h, steps, best.cpu, &reference)?),
+            Some(api) => Some(run_peer(self.o, api, w, h, self.steps, best.cpu, &self.reference)?),
             None => None,
         };
-        // The fidelity target: the model the FMU integrates stays within 1e-5 of each
-        // output's range of an independent tight-tolerance integration of its equations,
-        // judged where the trajectory is well-conditioned (a ref spread of 2e-8 already
-        // came with the peer 3.9e-5 off: `hbridge_square_100Hz` at 0.3 s).
-        if let Some(p) = peer.as_ref().filter(|_| o.peer_rtol <= PEER_RTOL) {
-            let (dev, output) = p.deviation;
-            let judged = reference_spread.0 <= WELL_CONDITIONED;
-            if dev.is_nan() || (judged && dev > FIDELITY_LIMIT) {
-                problems.push(format!(
-                    "{}: the peer at rtol {:e} deviates {dev:.2e} of {}'s range from the reference (limit {FIDELITY_LIMIT:e})",
-                    w.name,
-                    o.peer_rtol,
-                    workloads::OUTPUT_NAMES[output]
-                ));
-            }
+        if let Some(p) = &peer {
+            self.check_peer_fidelity(p, problems);
         }
-        rows.push(Row {
+        let sim_time = self.steps as f64 * h;
+        let row = Row {
             workload: w.name.clone(),
             instances: w.legs.len(),
             h,
@@ -271,13 +235,135 @@ fn measure(
             step_wall: timed.step_wall.summary(),
             slowest,
             deviation: Some(dev),
-            reference_spread,
-            work,
+            reference_spread: self.reference_spread,
+            work: self.work,
             peer,
-        });
-        first_trace.get_or_insert(best.trace);
+        };
+        Ok((row, best.trace))
     }
-    Ok(rows)
+
+    /// The untimed run with the shortest wall time of `repeat`.
+    fn best_untimed_run(&self, fmu: &Fmu) -> Result<fmu_run::FmuRun, String> {
+        let mut best: Option<fmu_run::FmuRun> = None;
+        for _ in 0..self.o.repeat {
+            let r = fmu_run::run(fmu, self.w, self.h, self.steps, false)?;
+            if best.as_ref().is_none_or(|b| r.wall < b.wall) {
+                best = Some(r);
+            }
+        }
+        Ok(best.unwrap())
+    }
+
+    /// The first timed run, and each call's shortest CPU time over `repeat` timed runs.
+    /// The first run's slowest calls show what this machine did to them; the shortest
+    /// time of each call is the work it takes.
+    fn timed_runs(&self, fmu: &Fmu) -> Result<(fmu_run::FmuRun, Samples), String> {
+        let (w, h, steps) = (self.w, self.h, self.steps);
+        let timed = fmu_run::run(fmu, w, h, steps, true)?;
+        let mut least = timed.step_cpu.clone();
+        for _ in 1..self.o.repeat {
+            least.keep_shorter(&fmu_run::run(fmu, w, h, steps, true)?.step_cpu);
+        }
+        Ok((timed, least))
+    }
+
+    /// The slowest doStep and, if that was a first step, the slowest after the first steps,
+    /// each with the work the FMU's integrators did in it.
+    fn diagnose_slowest(
+        &self,
+        least: &Samples,
+        step_cpu: Summary,
+    ) -> Result<(report::SlowStep, Option<report::SlowStep>), String> {
+        let (w, h) = (self.w, self.h);
+        let legs = w.legs.len();
+        let diagnose = |call: usize, cpu: f64| -> Result<report::SlowStep, String> {
+            let (k, leg) = (call / legs, call % legs);
+            let work = reference::work_of_step(w, w.legs[leg], h, k)?;
+            Ok(report::SlowStep { cpu, t: k as f64 * h, leg, work })
+        };
+        // The first step builds the propagators: the slowest after it, too.
+        let later = match least.slowest_from(legs) {
+            Some((call, cpu)) if call != step_cpu.slowest => Some(diagnose(call, cpu)?),
+            _ => None,
+        };
+        Ok((diagnose(step_cpu.slowest, step_cpu.max)?, later))
+    }
+
+    /// The worst deviation of `trace` from the reference (a fraction of the output's range,
+    /// and which output); a problem if it is beyond the limit.
+    fn check_deviation(
+        &self,
+        fmu: &Fmu,
+        trace: &Trace,
+        problems: &mut Vec<String>,
+    ) -> (f64, usize) {
+        let dev = report::worst(&reference::deviation(trace, &self.reference));
+        // Beyond the limit and well beyond what the trajectory's conditioning explains: the
+        // reference moved by its spread for a 10x tighter tolerance, so an FMU that many
+        // times looser may move that much more (hbridge_square_100Hz over 0.5 s: spread
+        // 8.8e-4, the FMU at 1e-7 5.3e-1 off).
+        if dev.0.is_nan()
+            || (dev.0 > DEVIATION_LIMIT && dev.0 > 10.0 * self.looser * self.reference_spread.0)
+        {
+            let (k, value, expected) = reference::worst_point(trace, &self.reference, dev.1);
+            problems.push(format!(
+                "{} {}: {} deviates {:.2e} of its range from the reference, most at t = {:.6} s: {value:e} instead of {expected:e}",
+                fmu.version().label(),
+                self.w.name,
+                workloads::OUTPUT_NAMES[dev.1],
+                dev.0,
+                (k + 1) as f64 * self.h
+            ));
+        }
+        dev
+    }
+
+    /// The outcomes two workloads are built for: idle stays where it starts, step_to_rest
+    /// ends at its commanded current.
+    fn check_signal_outcome(&self, trace: &Trace) -> Result<(), String> {
+        let w = self.w;
+        // Idle measures the calls alone: an instance whose state moves is doing other work.
+        if w.legs[0] == Signal::Idle {
+            if let Some(k) = trace.iter().position(|y| y != &trace[0]) {
+                return Err(format!(
+                    "{}: the outputs moved at t = {:.6} s though every input stays 0",
+                    w.name,
+                    (k + 1) as f64 * self.h
+                ));
+            }
+        }
+        if w.legs[0] == Signal::StepToRest {
+            let i_end = trace.last().map_or(f64::NAN, |y| y[0]);
+            if i_end.is_nan() || (i_end - I_AMPLITUDE).abs() > 1e-4 * I_AMPLITUDE {
+                return Err(format!(
+                    "{}: i_coil ended at {i_end} A, expected {I_AMPLITUDE} A",
+                    w.name
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The fidelity target: the model the FMU integrates stays within 1e-5 of each
+    /// output's range of an independent tight-tolerance integration of its equations,
+    /// judged where the trajectory is well-conditioned (a ref spread of 2e-8 already
+    /// came with the peer 3.9e-5 off: `hbridge_square_100Hz` at 0.3 s). Judged only with
+    /// the peer at [`PEER_RTOL`] or tighter.
+    fn check_peer_fidelity(&self, p: &PeerSummary, problems: &mut Vec<String>) {
+        if self.o.peer_rtol > PEER_RTOL {
+            return;
+        }
+        let (dev, output) = p.deviation;
+        let judged = self.reference_spread.0 <= WELL_CONDITIONED;
+        if dev.is_nan() || (judged && dev > FIDELITY_LIMIT) {
+            problems.push(format!(
+                "{}: the peer at rtol {:e} deviates {dev:.2e} of {}'s range from the reference (limit {FIDELITY_LIMIT:e})",
+                self.w.name,
+                self.o.peer_rtol,
+                workloads::OUTPUT_NAMES[output]
+            ));
+        }
+    }
 }
 
 /// The peer on every leg of the workload (its accuracy on the first).
@@ -323,38 +409,55 @@ fn main() -> ExitCode {
             return if e.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
         }
     };
-    if !o.lib.exists() {
-        eprintln!(
-            "bench: {} not found: build it with `cargo build --release -p ehsv-actuator`",
-            o.lib.display()
-        );
-        return ExitCode::FAILURE;
-    }
-    let fmus = match o.versions.iter().map(|&v| Fmu::load(&o.lib, v)).collect::<Result<Vec<_>, _>>()
-    {
-        Ok(f) => f,
+    let (fmus, cvode) = match load_fmus(&o).and_then(|fmus| Ok((fmus, load_peer(&o)?))) {
+        Ok(loaded) => loaded,
         Err(e) => {
             eprintln!("bench: {e}");
             return ExitCode::FAILURE;
         }
     };
-    let cvode = if o.peer {
-        match peer::Api::load() {
-            Ok(api) => Some(api),
-            Err(e) if !o.require_peer => {
-                println!(
-                    "peer: {e}; the peer columns stay empty (scripts/setup-bench.sh installs it)"
-                );
-                None
-            }
-            Err(e) => {
-                eprintln!("bench: --require-peer: {e} (scripts/setup-bench.sh installs it)");
-                return ExitCode::FAILURE;
-            }
-        }
+    print_preamble(&o);
+    let results = measure_all(&o, &fmus, cvode.as_ref());
+    print_closing(&o, &results);
+    for p in &results.problems {
+        eprintln!("bench: {p}");
+    }
+    if results.failed || !results.problems.is_empty() {
+        ExitCode::FAILURE
     } else {
-        None
-    };
+        ExitCode::SUCCESS
+    }
+}
+
+/// The FMU's library, once per FMI version asked for.
+fn load_fmus(o: &Options) -> Result<Vec<Fmu>, String> {
+    if !o.lib.exists() {
+        return Err(format!(
+            "{} not found: build it with `cargo build --release -p ehsv-actuator`",
+            o.lib.display()
+        ));
+    }
+    o.versions.iter().map(|&v| Fmu::load(&o.lib, v)).collect()
+}
+
+/// CVODE if the peer is wanted and installed; without it the peer columns stay empty,
+/// unless `--require-peer`.
+fn load_peer(o: &Options) -> Result<Option<peer::Api>, String> {
+    if !o.peer {
+        return Ok(None);
+    }
+    match peer::Api::load() {
+        Ok(api) => Ok(Some(api)),
+        Err(e) if !o.require_peer => {
+            println!("peer: {e}; the peer columns stay empty (scripts/setup-bench.sh installs it)");
+            Ok(None)
+        }
+        Err(e) => Err(format!("--require-peer: {e} (scripts/setup-bench.sh installs it)")),
+    }
+}
+
+/// What the run is, the workloads, and the table's header.
+fn print_preamble(o: &Options) {
     println!("EhsvActuator benchmark through the FMI C API ({})", o.lib.display());
     println!(
         "{} s simulated per run, best of {} untimed run(s); peer rtol {:e}",
@@ -363,48 +466,64 @@ fn main() -> ExitCode {
     println!("{}", workloads::DESCRIPTION);
     println!();
     report::header();
-    let mut failed = false;
-    let mut problems = Vec::new();
-    let mut slowest = Vec::new();
-    let mut targets = Vec::new();
+}
+
+/// What the rows leave for after the table.
+#[derive(Default)]
+struct Results {
+    /// A workload could not be measured (its error is printed when it happens).
+    failed: bool,
+    /// Checks that failed, printed at the end.
+    problems: Vec<String>,
+    /// The lines about each row's slowest doStep.
+    slowest: Vec<String>,
+    /// The lines about each row against the targets.
+    targets: Vec<String>,
+}
+
+/// Every selected workload at every step size, its rows printed as they are measured.
+fn measure_all(o: &Options, fmus: &[Fmu], cvode: Option<&peer::Api>) -> Results {
+    let mut results = Results::default();
     for &h in &o.steps {
         for w in workloads::all() {
             let w = Workload { solver_rtol: o.fmu_rtol, ..w };
-            if o.only.as_ref().is_some_and(|names| !names.split(',').any(|n| n == w.name)) {
+            if !selected(o, &w, h) {
                 continue;
             }
-            if w.is_quadruped() && h != QUADRUPED_H && !o.all_h {
-                continue;
-            }
-            match measure(&o, &fmus, cvode.as_ref(), &w, h, &mut problems) {
+            match measure(o, fmus, cvode, &w, h, &mut results.problems) {
                 Ok(rows) => {
                     rows.iter().for_each(report::print);
-                    slowest.extend(rows.iter().filter_map(report::slowest_steps));
-                    targets.extend(rows.iter().filter_map(report::targets));
+                    results.slowest.extend(rows.iter().filter_map(report::slowest_steps));
+                    results.targets.extend(rows.iter().filter_map(report::targets));
                 }
                 Err(e) => {
                     eprintln!("bench: {}, h = {h}: {e}", w.name);
-                    failed = true;
+                    results.failed = true;
                 }
             }
         }
     }
+    results
+}
+
+/// Whether `--only` names the workload, and the quadruped at `h` unless `--all-h`.
+fn selected(o: &Options, w: &Workload, h: f64) -> bool {
+    if o.only.as_ref().is_some_and(|names| !names.split(',').any(|n| n == w.name)) {
+        return false;
+    }
+    !(w.is_quadruped() && h != QUADRUPED_H && !o.all_h)
+}
+
+/// The legend, the slowest steps and the rows against the targets.
+fn print_closing(o: &Options, results: &Results) {
     println!();
     println!("{}", report::LEGEND);
     println!();
     println!("{}", report::SLOWEST_HEADER);
-    slowest.iter().for_each(|line| println!("{line}"));
-    if !targets.is_empty() {
+    results.slowest.iter().for_each(|line| println!("{line}"));
+    if !results.targets.is_empty() {
         println!();
         println!("{}", report::targets_header(o.t_end));
-        targets.iter().for_each(|line| println!("{line}"));
-    }
-    for p in &problems {
-        eprintln!("bench: {p}");
-    }
-    if failed || !problems.is_empty() {
-        ExitCode::FAILURE
-    } else {
-        ExitCode::SUCCESS
+        results.targets.iter().for_each(|line| println!("{line}"));
     }
 }

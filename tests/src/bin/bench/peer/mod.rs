@@ -66,28 +66,10 @@ pub fn run(
     steps: usize,
     rtol: f64,
 ) -> Result<PeerRun, String> {
-    let start = crate::reference::start(workload, None)?;
-    let mut values = [0.0; N_VARIABLES];
-    for (k, v) in values.iter_mut().enumerate() {
-        *v = start.get(k).unwrap();
-    }
+    let values = start_values(workload)?;
     let model = WholeModel::new(&ehsv_actuator::variables::params(&values)?)?;
     let rail = model.rail(values[vr::V_SUPPLY]);
-    let mut y0 = [0.0; NY];
-    y0[I] = values[vr::I_COIL];
-    y0[UI] = values[vr::U_DRIVER]; // at the start equilibrium the error is 0: u = ui
-    y0[U] = values[vr::U_DRIVER];
-    y0[XF] = values[vr::X_FLAPPER];
-    y0[XS] = values[vr::X_SPOOL];
-    y0[PA] = values[vr::P_A];
-    y0[PB] = values[vr::P_B];
-    y0[X] = values[vr::X_PISTON];
-    y0[V] = values[vr::V_PISTON];
-    if model.driver() == DriverKind::HBridge {
-        // The bridge's mean voltage R i holds the current; u and ui are not states there.
-        y0[UI] = 0.0;
-        y0[U] = 0.0;
-    }
+    let y0 = initial_state(&model, &values);
     let [i_ref0, q_ref0, x_ref0, _] = signal.inputs(0.0);
     let reference = |q_ref: f64, x_ref: f64| match model.control_mode() {
         ControlMode::Flow => q_ref,
@@ -150,6 +132,36 @@ pub fn run(
     let counters = solver.counters();
     drop(solver);
     Ok(PeerRun { cpu, wall, counters, restarts, trace })
+}
+
+/// Every variable's value in the FMU's start state for `workload`.
+fn start_values(workload: &Workload) -> Result<[f64; N_VARIABLES], String> {
+    let start = crate::reference::start(workload, None)?;
+    let mut values = [0.0; N_VARIABLES];
+    for (k, v) in values.iter_mut().enumerate() {
+        *v = start.get(k).unwrap();
+    }
+    Ok(values)
+}
+
+/// The solver's state vector at the FMU's start `values`.
+fn initial_state(model: &WholeModel, values: &[f64; N_VARIABLES]) -> [f64; NY] {
+    let mut y0 = [0.0; NY];
+    y0[I] = values[vr::I_COIL];
+    y0[UI] = values[vr::U_DRIVER]; // at the start equilibrium the error is 0: u = ui
+    y0[U] = values[vr::U_DRIVER];
+    y0[XF] = values[vr::X_FLAPPER];
+    y0[XS] = values[vr::X_SPOOL];
+    y0[PA] = values[vr::P_A];
+    y0[PB] = values[vr::P_B];
+    y0[X] = values[vr::X_PISTON];
+    y0[V] = values[vr::V_PISTON];
+    if model.driver() == DriverKind::HBridge {
+        // The bridge's mean voltage R i holds the current; u and ui are not states there.
+        y0[UI] = 0.0;
+        y0[U] = 0.0;
+    }
+    y0
 }
 
 /// The recorded outputs at `y` (`workloads::OUTPUTS` order).
