@@ -61,6 +61,6 @@ rm -f /tmp/setup-venv.err.$$
 echo "setup-venv: installing requirements into $VENV" >&2
 "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQ" >&2
 link_package
-"$VENV/bin/python" -c 'import fmpy, numpy, pytest, matplotlib, ehsv' >&2
+"$VENV/bin/python" -c 'import fmpy, numpy, pytest, matplotlib, mujoco, ehsv' >&2
 echo "$want" > "$STAMP"
 echo "setup-venv: ready ($VENV, Python $pyver)" >&2

@@ -27,6 +27,8 @@ stage() {
 }
 
 scripts/setup-venv.sh || { echo "=== venv: FAILED, cannot run the Python tests"; exit 1; }
+# GL for MuJoCo's offscreen renderer (the robot examples' pictures; the tests run without)
+scripts/setup-gl.sh || echo "=== setup-gl: FAILED (MuJoCo pictures will be skipped)"
 
 stage cargo-test cargo test --workspace --release
 stage build-fmu cargo run --release -p build-fmu

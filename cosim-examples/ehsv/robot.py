@@ -1,0 +1,662 @@
+"""Hydraulic robots in MuJoCo: each joint driven by one EhsvActuator cylinder through a lever.
+
+What cosim-examples/hydraulic_leg.py and quadruped.py share:
+
+* ``Hydraulics``: supply, relief setting, position gain and the cylinder's areas; the
+  stall and relief-bounded forces the rod can carry,
+* ``Lever``: the cylinder's mounting. Its base pivot sits on the parent link at ``d`` from
+  the joint, its rod end on the child link at the lever arm ``r``; the cylinder's length
+  is the third side of that triangle, ``L(q) = sqrt(d^2 + r^2 - 2 d r cos psi(q))`` with
+  ``psi = pi/2 + sign (q - q_mid)``, so the lever is perpendicular to the cylinder (the
+  moment arm is largest, ~r) at ``q_mid``, which is mapped to mid-stroke:
+  ``x_rod = L(q) - L(q_mid)``, ``v_rod = L'(q) qdot`` and the joint torque of a rod force
+  is ``tau = F_rod L'(q)`` (virtual work). ``LeverSet`` evaluates all of a robot's levers
+  at once (numpy),
+* the actuator banks, one class boundary with two implementations:
+  ``FmuBank`` (the EhsvActuator FMU with its motion port, ``cylinder.port`` = motion: the
+  host owns the moving mass and sends ``x_rod``/``v_rod``, the FMU answers ``F_rod``),
+  called through fmpy's ctypes functions on preallocated arrays, one setReal / doStep /
+  getReal per actuator and step; and ``StandInBank``, the same interface in numpy (valve,
+  chambers, relief, friction, end stops, a P position loop) for archives without the
+  port. ``make_bank`` chooses,
+* ``Cosim``: the co-simulation loop as MuJoCo's examples write one (mj_step1 -> actuators
+  -> qfrc_applied -> mj_step2), the joint commands from a controller at a lower rate,
+  recording, rendering at chosen instants, and the wall time split into MuJoCo, the
+  actuator calls and the Python around them,
+* ``leg_ik``: the 2-link leg's joint angles that put the foot at a point below the hip,
+* ``render_frames``/``save_strip``: MuJoCo's offscreen renderer (MUJOCO_GL=egl or osmesa);
+  where no GL context can be made they say why and the caller goes on without a picture.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .fmu import model_description
+from .paths import fmu_path, missing_fmu_message, require_fmu
+
+#: the FMU's variables of the motion port (cylinder.port = 1)
+PORT_FORCE, PORT_MOTION = 0, 1
+CONTROL_POSITION = 2
+#: recorded besides F_rod, at the recording rate
+MONITORED = ("p_A", "p_B", "i_coil")
+
+
+# ---------------------------------------------------------------------------------------
+# hydraulics and levers
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Hydraulics:
+    """Supply, relief setting, position loop and cylinder geometry of every actuator."""
+
+    p_supply: float = 16e6  # Pa, input p_supply
+    p_crack: float = 21e6  # Pa, relief.p_crack (must be above p_supply)
+    dp_override: float = 1e6  # Pa, relief.dp_override (the FMU's default)
+    Kp: float = 0.6  # A/m, position.Kp (0.6 mA per mm)
+    C_leak: float = 1e-12  # m3/(s Pa), cylinder.C_leak: a bypass across the piston
+    bore: float = 0.016
+    rod: float = 0.010
+    stroke: float = 0.08
+
+    @property
+    def A_A(self) -> float:
+        return math.pi * self.bore**2 / 4
+
+    @property
+    def A_B(self) -> float:
+        return self.A_A - math.pi * self.rod**2 / 4
+
+    def stall_force(self) -> tuple[float, float]:
+        """The largest push and pull the supply holds still (N): p_S A_A, -p_S A_B."""
+        return self.p_supply * self.A_A, -self.p_supply * self.A_B
+
+    def relief_force(self) -> tuple[float, float]:
+        """The force bounds a load can drive the rod to with both chambers under their
+        relief valves' crack + override (plus the other chamber at the cavitation floor)."""
+        p = self.p_crack + self.dp_override
+        return p * self.A_A + 0.1e6 * self.A_B, -(p * self.A_B + 0.1e6 * self.A_A)
+
+    def fmu_values(self) -> dict:
+        return {
+            "cylinder.bore": self.bore,
+            "cylinder.rod": self.rod,
+            "cylinder.stroke": self.stroke,
+            "relief.p_crack": self.p_crack,
+            "relief.dp_override": self.dp_override,
+            "position.Kp": self.Kp,
+            "cylinder.C_leak": self.C_leak,
+            "p_supply": self.p_supply,
+        }
+
+
+@dataclass(frozen=True)
+class Lever:
+    """A cylinder mounted across one joint (see the module's docstring).
+
+    ``d``: base pivot's distance from the joint on the parent link (m), ``r``: the lever
+    arm on the child link (m), ``q_mid``: the joint angle at mid-stroke (rad, the lever
+    perpendicular to the cylinder), ``sign``: +1 when the rod extends as q grows.
+    ``base_angle``: the direction of the base pivot from the joint in the parent's frame,
+    measured in the joint's plane (only for drawing the cylinder; the physics needs d, r,
+    q_mid and sign)."""
+
+    d: float
+    r: float
+    q_mid: float
+    sign: int
+    base_angle: float = 0.0
+
+    @property
+    def L_mid(self) -> float:
+        return math.hypot(self.d, self.r)
+
+    def rod(self, q: float) -> tuple[float, float]:
+        """x_rod (m from mid-stroke) and dx_rod/dq (m/rad, the moment arm) at q."""
+        psi = math.pi / 2 + self.sign * (q - self.q_mid)
+        L = math.sqrt(self.d**2 + self.r**2 - 2 * self.d * self.r * math.cos(psi))
+        return L - self.L_mid, self.sign * self.d * self.r * math.sin(psi) / L
+
+    def rod_end_angle(self) -> float:
+        """The lever's direction in the child's frame (same angle convention as
+        base_angle), so that the angle between base and rod end is psi."""
+        return self.base_angle + self.sign * math.pi / 2 - self.q_mid
+
+    def joint_range(self, stroke: float, margin: float = 0.002) -> tuple[float, float]:
+        """The joint angles between which the rod stays ``margin`` inside its stroke
+        (searched on a grid over |q - q_mid| < pi)."""
+        q = self.q_mid + np.linspace(-math.pi * 0.999, math.pi * 0.999, 20001)
+        x = np.array([self.rod(float(a))[0] for a in q])
+        ok = np.abs(x) <= stroke / 2 - margin
+        i0 = len(q) // 2
+        lo = i0
+        while lo > 0 and ok[lo - 1]:
+            lo -= 1
+        hi = i0
+        while hi < len(q) - 1 and ok[hi + 1]:
+            hi += 1
+        return float(q[lo]), float(q[hi])
+
+
+class LeverSet:
+    """Every lever of a robot, evaluated at once."""
+
+    def __init__(self, levers: Sequence[Lever]):
+        self.levers = tuple(levers)
+        self.d = np.array([lv.d for lv in levers])
+        self.r = np.array([lv.r for lv in levers])
+        self.q_mid = np.array([lv.q_mid for lv in levers])
+        self.sign = np.array([float(lv.sign) for lv in levers])
+        self._dd_rr = self.d**2 + self.r**2
+        self._2dr = 2 * self.d * self.r
+        self._sdr = self.sign * self.d * self.r
+        self._L_mid = np.sqrt(self._dd_rr)
+        self._offset = math.pi / 2 - self.sign * self.q_mid
+
+    def rod(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x_rod and dx_rod/dq for the joint angles q (one per lever)."""
+        psi = self.sign * q + self._offset
+        L = np.sqrt(self._dd_rr - self._2dr * np.cos(psi))
+        return L - self._L_mid, self._sdr * np.sin(psi) / L
+
+
+# ---------------------------------------------------------------------------------------
+# the actuators: one interface, two implementations
+# ---------------------------------------------------------------------------------------
+def motion_port_missing(version: str = "fmi2") -> str | None:
+    """None if the built archive has the motion port, else why not."""
+    msg = missing_fmu_message(version)
+    if msg:
+        return msg
+    names = {v.name for v in model_description(fmu_path(version)).modelVariables}
+    lacking = [n for n in ("cylinder.port", "x_rod", "v_rod", "F_rod") if n not in names]
+    if lacking:
+        return (
+            f"{fmu_path(version).name} has no motion port (no {', '.join(lacking)} in its "
+            f"modelDescription): rebuild it from a tree that has one"
+        )
+    return None
+
+
+class ActuatorBank:
+    """n actuators stepped together: ``step(t, h, x, v, x_ref)`` takes the rods' positions
+    and velocities (m, m/s) at t and the position commands, advances every actuator to
+    t + h and leaves the rod forces at t + h in ``F`` (numpy array, N).
+    ``monitor()`` returns the MONITORED outputs, shape (len(MONITORED), n)."""
+
+    kind = "abstract"
+    n: int
+    F: np.ndarray
+
+    def step(self, t: float, h: float, x, v, x_ref) -> None:  # pragma: no cover
+        raise NotImplementedError
+
+    def monitor(self) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+
+class FmuBank(ActuatorBank):
+    """n instances of the EhsvActuator FMU in motion-port mode, position loop on.
+
+    The per-step calls go straight to the archive's fmi2SetReal / fmi2DoStep /
+    fmi2GetReal (fmi3SetFloat64 / fmi3DoStep / fmi3GetFloat64) through ctypes on arrays
+    made once: fmpy's Python wrappers (logging, status checks, list conversions) cost
+    more than the FMU's own step here. A status above Warning raises at once."""
+
+    kind = "fmu"
+
+    def __init__(self, n: int, hyd: Hydraulics, x0, x_ref0, version: str = "fmi2", extra=None):
+        from .fmu import Ehsv
+
+        self.n, self.version, self.hyd = n, version, hyd
+        self.F = np.zeros(n)
+        self.insts = []
+        for i in range(n):
+            e = Ehsv(version, instance_name=f"cyl{i}")
+            self.insts.append(e)
+            e.set("cylinder.port", PORT_MOTION)
+            e.set("control_mode", CONTROL_POSITION)
+            for name, value in {**hyd.fmu_values(), **(extra or {})}.items():
+                e.set(name, value)
+            e.set("x_rod", float(x0[i]))
+            e.set("v_rod", 0.0)
+            e.set("x_ref", float(x_ref0[i]))
+            e.initialize(start_time=0.0)
+        e = self.insts[0]
+        fmi2 = version == "fmi2"
+        dll = e.fmu.dll
+        self._set = dll.fmi2SetReal if fmi2 else dll.fmi3SetFloat64
+        self._get = dll.fmi2GetReal if fmi2 else dll.fmi3GetFloat64
+        self._do = dll.fmi2DoStep if fmi2 else dll.fmi3DoStep
+        self._fmi2 = fmi2
+        self._c = [inst.fmu.component for inst in self.insts]
+        self._vr_in = (ctypes.c_uint32 * 3)(*(e.vr(k) for k in ("x_rod", "v_rod", "x_ref")))
+        self._vr_F = (ctypes.c_uint32 * 1)(e.vr("F_rod"))
+        self._vr_mon = (ctypes.c_uint32 * len(MONITORED))(*(e.vr(k) for k in MONITORED))
+        self._in = [(ctypes.c_double * 3)() for _ in range(n)]
+        self._out = (ctypes.c_double * n)()
+        self._mon = (ctypes.c_double * len(MONITORED))()
+        if not fmi2:  # fmi3DoStep's four out-arguments
+            self._b = [ctypes.c_bool() for _ in range(3)]
+            self._last = ctypes.c_double()
+        self._calls = self._make_calls()
+
+    def _make_calls(self):
+        """One closure per actuator that does its three calls (bound locals: lean)."""
+        calls = []
+        set_, get_, do_ = self._set, self._get, self._do
+        vr_in, vr_F = self._vr_in, self._vr_F
+        out = self._out
+        for i, c in enumerate(self._c):
+            buf = self._in[i]
+            dst = ctypes.cast(ctypes.addressof(out) + 8 * i, ctypes.POINTER(ctypes.c_double))
+            if self._fmi2:
+
+                def call(t, h, x, v, xr, c=c, buf=buf, dst=dst):
+                    buf[0] = x
+                    buf[1] = v
+                    buf[2] = xr
+                    return set_(c, vr_in, 3, buf) | do_(c, t, h, 1) | get_(c, vr_F, 1, dst)
+
+            else:
+                b0, b1, b2 = (ctypes.byref(b) for b in self._b)
+                last = ctypes.byref(self._last)
+
+                def call(t, h, x, v, xr, c=c, buf=buf, dst=dst, b0=b0, b1=b1, b2=b2, last=last):
+                    buf[0] = x
+                    buf[1] = v
+                    buf[2] = xr
+                    return (
+                        set_(c, vr_in, 3, buf, 3)
+                        | do_(c, t, h, True, b0, b1, b2, last)
+                        | get_(c, vr_F, 1, dst, 1)
+                    )
+
+            calls.append(call)
+        return calls
+
+    def step(self, t, h, x, v, x_ref) -> None:
+        status = 0
+        for call, xi, vi, ri in zip(self._calls, x, v, x_ref, strict=True):
+            status |= call(t, h, xi, vi, ri)
+        if status > 1:
+            self._raise(t)
+        self.F[:] = self._out
+
+    def _raise(self, t):
+        logs = "\n".join(f"{inst.instance_name}: {inst.log_text()}" for inst in self.insts if inst.log)
+        raise RuntimeError(f"an FMU call failed at t = {t:.6g} s\n{logs}")
+
+    def monitor(self) -> np.ndarray:
+        res = np.empty((len(MONITORED), self.n))
+        for i, c in enumerate(self._c):
+            if self._fmi2:
+                self._get(c, self._vr_mon, len(MONITORED), self._mon)
+            else:
+                self._get(c, self._vr_mon, len(MONITORED), self._mon, len(MONITORED))
+            res[:, i] = self._mon
+        return res
+
+    def close(self) -> None:
+        for inst in self.insts:
+            inst.free()
+        self.insts = []
+
+
+class StandInBank(ActuatorBank):
+    """The motion port's interface in numpy, for archives that do not have it yet.
+
+    The same physics in outline, explicit, 4 sub-steps per call: a P position loop
+    (``Kp``, limited to +-10 mA) whose current the valve follows with its 1.19 ms spool
+    lag (the coil behind the op-amp driver being much faster), the critically centred
+    valve's port flows ``Q = K3 x_spool sqrt(dp / (dp_rated / 2))`` (linear below 1 bar),
+    the two chambers' pressures with the rod moving as x + v (t - t_k), the relief valves
+    as a ceiling at crack + override, the cavitation floor, viscous + smoothed Coulomb
+    friction and the 1e8 N/m end stops. F_rod = p_A A_A - p_B A_B - friction - end stop."""
+
+    kind = "stand-in"
+
+    def __init__(self, n: int, hyd: Hydraulics, x0, x_ref0, substeps: int = 4):
+        self.n, self.hyd, self.sub = n, hyd, substeps
+        self.F = np.zeros(n)
+        self.K_flow = 0.025268  # m3/s per A, K3 K1 / Kw
+        self.tau_spool = 1.19e-3
+        self.i_max = 0.01
+        self.beta, self.V_dead = 1e9, 2e-6
+        self.b, self.F_c, self.v_c = 200.0, 20.0, 1e-3
+        self.k_stop, self.c_stop = 1e8, 1e4
+        self.dp_half = 6.8948e6 / 2
+        self.dp_lam = 1e5
+        A_A, A_B = hyd.A_A, hyd.A_B
+        p_s = hyd.p_supply
+        self.p_A = np.full(n, p_s * A_B / (A_A + A_B))  # balanced, p_A + p_B = p_S
+        self.p_B = np.full(n, p_s * A_A / (A_A + A_B))
+        self.Qv = np.zeros(n)
+        self.i = np.zeros(n)
+        self.x0 = np.asarray(x0, dtype=float)
+
+    def _ssqrt(self, dp):
+        """Signed square root of dp / (dp_rated / 2), the odd cubic below 1 bar."""
+        a = np.abs(dp)
+        lam = self.dp_lam
+        u = np.minimum(a, lam) / lam
+        small = math.sqrt(lam / self.dp_half) * u * (1.5 - 0.5 * u * u)
+        return np.sign(dp) * np.where(a < lam, small, np.sqrt(a / self.dp_half))
+
+    def step(self, t, h, x, v, x_ref) -> None:
+        x = np.asarray(x, dtype=float)
+        v = np.asarray(v, dtype=float)
+        hyd = self.hyd
+        A_A, A_B, S = hyd.A_A, hyd.A_B, hyd.stroke
+        i_cmd = np.clip(hyd.Kp * (np.asarray(x_ref) - x), -self.i_max, self.i_max)
+        dt = h / self.sub
+        a = 1.0 - math.exp(-dt / self.tau_spool)
+        p_hi = hyd.p_crack + hyd.dp_override
+        p_lo = -0.09e6
+        for k in range(self.sub):
+            xk = x + v * (k + 0.5) * dt
+            self.Qv += a * (self.K_flow * i_cmd - self.Qv)
+            pos = self.Qv >= 0
+            Q_A = self.Qv * np.where(pos, self._ssqrt(hyd.p_supply - self.p_A), self._ssqrt(self.p_A))
+            Q_B = self.Qv * np.where(pos, self._ssqrt(self.p_B), self._ssqrt(hyd.p_supply - self.p_B))
+            V_A = np.maximum(self.V_dead + A_A * (xk + S / 2), 1e-3 * self.V_dead)
+            V_B = np.maximum(self.V_dead + A_B * (S / 2 - xk), 1e-3 * self.V_dead)
+            Q_L = hyd.C_leak * (self.p_A - self.p_B)
+            self.p_A = np.clip(self.p_A + dt * self.beta / V_A * (Q_A - A_A * v - Q_L), p_lo, p_hi)
+            self.p_B = np.clip(self.p_B + dt * self.beta / V_B * (-Q_B + A_B * v + Q_L), p_lo, p_hi)
+        self.i = self.Qv / self.K_flow
+        xe = x + v * h
+        over = np.abs(xe) - S / 2
+        stop = np.where(
+            over > 0, np.maximum(0.0, self.k_stop * over + self.c_stop * v * np.sign(xe)) * np.sign(xe), 0.0
+        )
+        friction = self.b * v + self.F_c * np.tanh(v / self.v_c)
+        self.F[:] = self.p_A * A_A - self.p_B * A_B - friction - stop
+
+    def monitor(self) -> np.ndarray:
+        return np.vstack([self.p_A, self.p_B, self.i])
+
+
+def make_bank(
+    kind: str, n: int, hyd: Hydraulics, x0, x_ref0, version: str = "fmi2"
+) -> tuple[ActuatorBank, str]:
+    """The actuator bank ``kind`` ('fmu', 'stand-in' or 'auto': the FMU when its archive
+    has the motion port, else the stand-in) and a line saying which and why."""
+    if kind == "auto":
+        missing = motion_port_missing(version)
+        kind = "stand-in" if missing else "fmu"
+        why = f" ({missing})" if missing else ""
+    else:
+        why = ""
+    if kind == "fmu":
+        require_fmu(version)
+        bank = FmuBank(n, hyd, x0, x_ref0, version)
+        return bank, f"actuators: {n} x EhsvActuator FMU ({version}, motion port, position loop)"
+    if kind == "stand-in":
+        bank = StandInBank(n, hyd, x0, x_ref0)
+        return bank, f"actuators: {n} x Python stand-in of the motion port{why}"
+    raise ValueError(f"unknown actuator kind {kind!r}")
+
+
+# ---------------------------------------------------------------------------------------
+# kinematics
+# ---------------------------------------------------------------------------------------
+def leg_ik(depth: float, fwd: float, L1: float, L2: float, bend: int) -> tuple[float, float]:
+    """Hip flexion and knee angles (rad, hinges about +y: a positive angle swings the
+    link's lower end towards -x) that put the foot ``depth`` below and ``fwd`` ahead of
+    the hip. ``bend`` = +1: the knee points forwards (knee angle > 0), -1: backwards."""
+    dist = math.hypot(depth, fwd)
+    dist = min(dist, (L1 + L2) * 0.9999)
+    c = (dist**2 - L1**2 - L2**2) / (2 * L1 * L2)
+    qk = bend * math.acos(max(-1.0, min(1.0, c)))
+    # foot = R(qh) [ (0,-L1) + R(qk)(0,-L2) ] in (x, z) with x' = -L sin(angle)
+    phi = math.atan2(-fwd, depth)  # direction of the foot from the hip, as a hinge angle
+    alpha = math.atan2(L2 * math.sin(qk), L1 + L2 * math.cos(qk))
+    return phi - alpha, qk
+
+
+# ---------------------------------------------------------------------------------------
+# the co-simulation loop
+# ---------------------------------------------------------------------------------------
+@dataclass
+class Timing:
+    steps: int = 0
+    wall: float = 0.0
+    mujoco: float = 0.0
+    actuators: float = 0.0
+
+    @property
+    def python(self) -> float:
+        return self.wall - self.mujoco - self.actuators
+
+    def line(self, t_sim: float, n_act: int) -> str:
+        us = 1e6 / max(self.steps, 1)
+        return (
+            f"wall {self.wall:.2f} s for {t_sim:.2f} s simulated: real-time factor "
+            f"{t_sim / self.wall:.2f} (> 1 is faster than real time); per step "
+            f"{self.wall * us:.1f} us = MuJoCo {self.mujoco * us:.1f} + actuators "
+            f"({n_act} x set/doStep/get) {self.actuators * us:.1f} + Python {self.python * us:.1f}"
+        )
+
+
+@dataclass
+class Record:
+    t: list = field(default_factory=list)
+    q: list = field(default_factory=list)
+    q_cmd: list = field(default_factory=list)
+    x_rod: list = field(default_factory=list)
+    F: list = field(default_factory=list)
+    mon: list = field(default_factory=list)
+    probe: list = field(default_factory=list)
+    qpos: list = field(default_factory=list)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        keys = ("t", "q", "q_cmd", "x_rod", "F", "probe", "qpos")
+        out = {k: np.asarray(getattr(self, k)) for k in keys}
+        m = np.asarray(self.mon)  # (samples, len(MONITORED), n)
+        for j, name in enumerate(MONITORED):
+            out[name] = m[:, j, :]
+        return out
+
+
+class Cosim:
+    """A MuJoCo model whose hinges ``joints`` are each driven by one actuator of ``bank``
+    through ``levers``.
+
+    Every step h (the model's timestep): mj_step1; the rods' x, v from qpos/qvel through
+    the levers; the bank's step from t to t + h with the position commands; the rod forces
+    times the moment arms into qfrc_applied; mj_step2. ``controller(t, data)`` gives the
+    joint angle commands every ``cmd_every`` steps (a robot's control rate), turned into
+    rod commands x_ref through the same levers."""
+
+    def __init__(self, model, data, joints: Sequence[str], levers: LeverSet, bank: ActuatorBank, controller):
+        import mujoco
+
+        self.mj = mujoco
+        self.model, self.data = model, data
+        self.levers, self.bank, self.controller = levers, bank, controller
+        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
+        if min(ids) < 0:
+            raise KeyError(f"joints not in the model: {joints}")
+        self.qadr = np.array([model.jnt_qposadr[i] for i in ids])
+        self.dadr = np.array([model.jnt_dofadr[i] for i in ids])
+        self.timing = Timing()
+        self.rec = Record()
+        self.q_cmd = np.zeros(len(joints))
+
+    def rods(self):
+        q = self.data.qpos[self.qadr]
+        x, dx = self.levers.rod(q)
+        return q, x, dx
+
+    def run(
+        self,
+        t_end: float,
+        record_every: int = 10,
+        cmd_every: int = 10,
+        probe: Callable | None = None,
+        stop: Callable | None = None,
+    ) -> Timing:
+        """Steps to t_end; records every ``record_every`` steps (the joints, commands,
+        rods, forces, the bank's MONITORED outputs, qpos for pictures afterwards and
+        ``probe(data)``: values of the caller's choosing) and stops early when
+        ``stop(data)`` is true (checked at the command rate)."""
+        mj, model, data, bank = self.mj, self.model, self.data, self.bank
+        h = float(model.opt.timestep)
+        n_steps = int(round((t_end - data.time) / h))
+        qpos, qvel, qfrc = data.qpos, data.qvel, data.qfrc_applied
+        qadr, dadr, rod = self.qadr, self.dadr, self.levers.rod
+        step1, step2 = mj.mj_step1, mj.mj_step2
+        rec, tim = self.rec, self.timing
+        pc = time.perf_counter
+        xref = None
+        t_mj = t_act = 0.0
+        done = 0
+        w0 = pc()
+        for k in range(n_steps):
+            t = data.time
+            c0 = pc()
+            step1(model, data)
+            c1 = pc()
+            if k % cmd_every == 0:
+                self.q_cmd = np.asarray(self.controller(t, data), dtype=float)
+                xref = rod(self.q_cmd)[0].tolist()
+                if stop is not None and stop(data):
+                    break
+            done += 1
+            q = qpos[qadr]
+            x, dx = rod(q)
+            v = dx * qvel[dadr]
+            c2 = pc()
+            bank.step(t, h, x.tolist(), v.tolist(), xref)
+            c3 = pc()
+            qfrc[dadr] = bank.F * dx
+            c4 = pc()
+            step2(model, data)
+            c5 = pc()
+            t_mj += (c1 - c0) + (c5 - c4)
+            t_act += c3 - c2
+            if k % record_every == 0:
+                rec.t.append(t + h)
+                rec.q.append(q)
+                rec.q_cmd.append(self.q_cmd)
+                rec.x_rod.append(x)
+                rec.F.append(bank.F.copy())
+                rec.mon.append(bank.monitor())
+                rec.probe.append(probe(data) if probe else ())
+                rec.qpos.append(qpos.copy())
+        tim.steps += done
+        tim.wall += pc() - w0
+        tim.mujoco += t_mj
+        tim.actuators += t_act
+        return tim
+
+
+# ---------------------------------------------------------------------------------------
+# MJCF helpers and pictures
+# ---------------------------------------------------------------------------------------
+def planar(angle: float, length: float, axis: str) -> tuple[float, float, float]:
+    """A point at ``length`` from a hinge about ``axis`` ('x' or 'y') in the direction
+    ``angle`` (0 = +z; a positive angle is where a positive hinge rotation turns +z)."""
+    if axis == "y":
+        return (length * math.sin(angle), 0.0, length * math.cos(angle))
+    return (0.0, -length * math.sin(angle), length * math.cos(angle))
+
+
+def fmt(v: Sequence[float]) -> str:
+    return " ".join(f"{c:.6g}" for c in v)
+
+
+def cylinder_sites(name: str, lever: Lever, axis: str, joint_pos=(0.0, 0.0, 0.0)) -> tuple[str, str]:
+    """MJCF of the two sites (base pivot in the parent body, relative to the joint at
+    ``joint_pos``; rod end in the child body, whose origin is the joint)."""
+    b = planar(lever.base_angle, lever.d, axis)
+    base = tuple(j + c for j, c in zip(joint_pos, b, strict=True))
+    end = planar(lever.rod_end_angle(), lever.r, axis)
+    return (
+        f'<site name="{name}_base" pos="{fmt(base)}" size="0.012" rgba=".3 .3 .35 1"/>',
+        f'<site name="{name}_end" pos="{fmt(end)}" size="0.01" rgba=".75 .75 .8 1"/>',
+    )
+
+
+def cylinder_tendon(name: str) -> str:
+    """A spatial tendon between the two sites: drawn as the cylinder; its length is the
+    lever's L(q), a check of the geometry (no stiffness: no force)."""
+    return (
+        f'<spatial name="{name}" width="0.013" rgba=".9 .55 .1 1">'
+        f'<site site="{name}_base"/><site site="{name}_end"/></spatial>'
+    )
+
+
+def gl_backend() -> str:
+    """The MUJOCO_GL in force, set to 'egl' when unset (must run before mujoco's import)."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    if os.environ["MUJOCO_GL"] in ("egl", "osmesa"):
+        os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+    return os.environ["MUJOCO_GL"]
+
+
+class Camera:
+    """MuJoCo's offscreen renderer with a free camera; ``snap(data)`` returns an RGB
+    array. ``error`` says why there is no renderer (no GL context could be made)."""
+
+    def __init__(self, model, width=480, height=480, lookat=(0, 0, 0.4), distance=1.8, azimuth=90, elev=-12):
+        import mujoco
+
+        self.mj = mujoco
+        self.renderer = None
+        self.error = None
+        try:
+            self.renderer = mujoco.Renderer(model, height, width)
+        except Exception as exc:  # noqa: BLE001 -- any GL failure means: no picture
+            self.error = f"{type(exc).__name__}: {exc}".strip().splitlines()[0]
+            return
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        cam.lookat[:] = lookat
+        cam.distance, cam.azimuth, cam.elevation = distance, azimuth, elev
+        self.cam = cam
+
+    def snap(self, data, track_body_pos=None) -> np.ndarray:
+        if track_body_pos is not None:
+            self.cam.lookat[:2] = track_body_pos[:2]
+        self.renderer.update_scene(data, camera=self.cam)
+        return self.renderer.render().copy()
+
+    def at(self, model, qpos: np.ndarray, track_body: int | None = None) -> np.ndarray:
+        """The picture of the model in the pose ``qpos`` (a recorded state)."""
+        data = self.mj.MjData(model)
+        data.qpos[:] = qpos
+        self.mj.mj_forward(model, data)
+        return self.snap(data, None if track_body is None else data.xpos[track_body])
+
+    def close(self):
+        if self.renderer is not None:
+            self.renderer.close()
+
+
+def save_strip(images: Sequence[np.ndarray], labels: Sequence[str], out) -> None:
+    """The frames side by side with a caption each, written as PNG."""
+    from .plotting import pyplot
+
+    plt = pyplot()
+    n = len(images)
+    h, w = images[0].shape[:2]
+    fig, axes = plt.subplots(1, n, figsize=(2.6 * n * w / h, 2.9), squeeze=False)
+    for ax, img, lab in zip(axes[0], images, labels, strict=True):
+        ax.imshow(img)
+        ax.set_title(lab, fontsize=9)
+        ax.axis("off")
+    fig.tight_layout(pad=0.3)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)

@@ -1,0 +1,430 @@
+"""A HyQ-like hydraulic quadruped in MuJoCo: 12 joints, each driven by an EhsvActuator cylinder.
+
+A 50 kg trunk on a free joint, four legs (hip abduction/adduction HAA, hip flexion HFE,
+knee KFE; thigh and shank 0.35 m; front knees pointing back, hind knees forward, as HyQ
+stands), 68 kg in all. Each joint is driven by one cylinder (bore 16 mm, rod 10 mm,
+stroke 80 mm, supply 16 MPa, relief 21 MPa) through a 45 mm lever (ehsv.robot.Lever),
+the FMU's position loop on each rod. The co-simulation steps at 1e-4 s as MuJoCo's
+examples write a loop: mj_step1 -> the 12 rods' x, v through the levers -> 12 x (setReal,
+doStep, getReal) -> joint torques F_rod * dx/dq into qfrc_applied -> mj_step2; the joint
+commands at 1 kHz.
+
+The run: from a crouch (hips at 0.35 m) stand up to 0.55 m, hold the stance, trot in
+place for 5 s (diagonal pairs LF+RH and RF+LH lift in alternation at 1.75 Hz, 5 cm foot
+lift, 45 % swing), with a proportional attitude feedback that lengthens the legs on the low side,
+then stand. Prints the base height and attitude, the rod force peaks, the real-time
+factor and where the wall time goes (MuJoCo, the actuator calls, Python); writes
+out/quadruped.png (base height, roll, pitch, the 12 rod forces) and, where a GL context
+can be made, out/quadruped_render.png.
+
+    .venv/bin/python cosim-examples/quadruped.py [--duration 8.5] [--short]
+        [--actuator auto|fmu|stand-in] [--fmi3] [--no-render]
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ehsv import cli, robot
+from ehsv.robot import Hydraulics, Lever, LeverSet
+
+L1 = L2 = 0.35
+FOOT_R = 0.025
+M_TRUNK, M_HIP, M_THIGH, M_SHANK = 50.0, 1.5, 2.0, 1.0
+HIP_X, HIP_Y = 0.37, 0.19
+H_CROUCH, H_STAND = 0.35, 0.55
+HYD = Hydraulics(p_supply=16e6, p_crack=21e6)
+LEGS = ("LF", "RF", "LH", "RH")
+#: trot pairs: LF + RH swing together, then RF + LH
+PAIR = {"LF": 0, "RH": 0, "RF": 1, "LH": 1}
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    name: str
+    x: float
+    y: float
+    bend: int  # +1: knee forwards (hind legs), -1: backwards (front legs)
+
+    @property
+    def levers(self) -> tuple[Lever, Lever, Lever]:
+        side = 1 if self.y > 0 else -1
+        haa = Lever(d=0.15, r=0.045, q_mid=0.0, sign=+1, base_angle=side * math.pi / 2)
+        # the HFE cylinder lies along the trunk towards its middle; the knee's along the thigh
+        b = self.bend
+        hfe = Lever(d=0.20, r=0.045, q_mid=-b * math.radians(45), sign=b, base_angle=b * math.pi / 2)
+        kfe = Lever(d=0.25, r=0.045, q_mid=self.bend * math.radians(95), sign=-self.bend, base_angle=0.0)
+        return haa, hfe, kfe
+
+
+GEOMETRY = tuple(
+    LegGeometry(
+        n, HIP_X if n[1] == "F" else -HIP_X, HIP_Y if n[0] == "L" else -HIP_Y, -1 if n[1] == "F" else 1
+    )
+    for n in LEGS
+)
+JOINTS = tuple(f"{g.name}_{j}" for g in GEOMETRY for j in ("haa", "hfe", "kfe"))
+LEVERS = tuple(lv for g in GEOMETRY for lv in g.levers)
+
+
+def _leg_xml(g: LegGeometry) -> tuple[str, str]:
+    """The leg's bodies and the trunk-side site of its HAA cylinder."""
+    haa, hfe, kfe = g.levers
+    n = g.name
+    hip = (g.x, g.y, 0.0)
+    haa_base, haa_end = robot.cylinder_sites(f"{n}_haa_cyl", haa, "x", joint_pos=hip)
+    hfe_base, hfe_end = robot.cylinder_sites(f"{n}_hfe_cyl", hfe, "y")
+    kfe_base, kfe_end = robot.cylinder_sites(f"{n}_kfe_cyl", kfe, "y", joint_pos=(0, 0, -L1))
+    knee_range = "0.05 2.6" if g.bend > 0 else "-2.6 -0.05"
+    body = f"""
+      <body name="{n}_hip" pos="{robot.fmt(hip)}">
+        <joint name="{n}_haa" type="hinge" axis="1 0 0" range="-0.9 0.9"/>
+        <geom type="capsule" fromto="-0.06 0 0 0.06 0 0" size="0.045" mass="{M_HIP}" rgba=".3 .32 .36 1"/>
+        {haa_end}
+        {hfe_base}
+        <body name="{n}_thigh">
+          <joint name="{n}_hfe" type="hinge" axis="0 1 0" range="-2.0 2.0"/>
+          <geom class="link" type="capsule" fromto="0 0 0 0 0 -{L1}" size="0.03" mass="{M_THIGH}"/>
+          {hfe_end}
+          {kfe_base}
+          <body name="{n}_shank" pos="0 0 -{L1}">
+            <joint name="{n}_kfe" type="hinge" axis="0 1 0" range="{knee_range}"/>
+            <geom class="link" type="capsule" fromto="0 0 0 0 0 -{L2}" size="0.02" mass="{M_SHANK - 0.1}"/>
+            {kfe_end}
+            <geom name="{n}_foot" type="sphere" pos="0 0 -{L2}" size="{FOOT_R}" mass="0.1" contype="1"
+                  conaffinity="1" friction="1 0.005 0.0001" rgba=".15 .15 .15 1"/>
+            <site name="{n}_foot" pos="0 0 -{L2}" size="0.005"/>
+          </body>
+        </body>
+      </body>"""
+    return body, haa_base
+
+
+def mjcf() -> str:
+    legs = [_leg_xml(g) for g in GEOMETRY]
+    tendons = "\n    ".join(robot.cylinder_tendon(f"{j}_cyl") for j in JOINTS)
+    return f"""
+<mujoco model="hydraulic_quadruped">
+  <compiler angle="radian"/>
+  <option timestep="1e-4" integrator="Euler"/>
+  <visual><global offwidth="800" offheight="800"/><quality shadowsize="2048"/></visual>
+  <asset>
+    <texture name="grid" type="2d" builtin="checker" rgb1=".82 .84 .86" rgb2=".70 .72 .75"
+             width="256" height="256"/>
+    <material name="grid" texture="grid" texrepeat="10 10" reflectance="0"/>
+    <texture name="sky" type="skybox" builtin="gradient" rgb1=".95 .97 1" rgb2=".75 .8 .9"
+             width="256" height="256"/>
+  </asset>
+  <default>
+    <joint armature="0.002" damping="0.05"/>
+    <geom contype="0" conaffinity="0"/>
+    <default class="link"><geom rgba=".25 .45 .7 1"/></default>
+  </default>
+  <worldbody>
+    <light pos="1 -2 3" dir="-0.3 0.6 -1" diffuse=".8 .8 .8" castshadow="true"/>
+    <geom name="floor" type="plane" size="4 4 0.05" material="grid" contype="1" conaffinity="1"
+          friction="1 0.005 0.0001" solref="0.004 1"/>
+    <body name="trunk" pos="0 0 {H_CROUCH}">
+      <freejoint name="base"/>
+      <geom name="trunk" type="box" size="0.44 0.13 0.07" mass="{M_TRUNK}" contype="1" conaffinity="1"
+            rgba=".3 .32 .36 1"/>
+      {"".join(base for _, base in legs)}
+      {"".join(body for body, _ in legs)}
+    </body>
+  </worldbody>
+  <tendon>
+    {tendons}
+  </tendon>
+</mujoco>"""
+
+
+def smooth(t, t0, t1, a, b):
+    """a before t0, b from t1 on, a half-cosine between."""
+    if t >= t1:
+        return b
+    if t <= t0:
+        return a
+    s = (t - t0) / (t1 - t0)
+    return a + (b - a) * (1 - math.cos(math.pi * s)) / 2
+
+
+@dataclass(frozen=True)
+class Plan:
+    t_up: tuple[float, float]
+    trot: tuple[float, float] | None
+    f_trot: float = 1.75
+    lift: float = 0.05
+    swing: float = 0.45  # fraction of the period a foot is in the air
+    k_att: float = 1.0  # attitude feedback: leg length per (rad x m from the centre)
+
+    @staticmethod
+    def full(duration: float) -> Plan:
+        # whole cycles (both pairs' feet down at the end), 5 s or what the duration leaves
+        cycles = math.floor(min(5.0, duration - 3.0) * Plan.f_trot + 0.5)
+        return Plan(t_up=(0.2, 1.2), trot=(2.5, 2.5 + cycles / Plan.f_trot) if cycles > 0 else None)
+
+    @staticmethod
+    def short() -> Plan:
+        return Plan(t_up=(0.0, 0.0), trot=None)
+
+    def height(self, t: float) -> float:
+        return smooth(t, *self.t_up, H_CROUCH, H_STAND)
+
+    def foot_lift(self, t: float, pair: int) -> float:
+        if self.trot is None or not (self.trot[0] <= t < self.trot[1]):
+            return 0.0
+        ph = ((t - self.trot[0]) * self.f_trot + 0.5 * pair) % 1.0
+        if ph >= self.swing:
+            return 0.0
+        return self.lift * math.sin(math.pi * ph / self.swing) ** 2
+
+
+def attitude(q: np.ndarray) -> tuple[float, float]:
+    """Roll and pitch (rad) of the quaternion w, x, y, z."""
+    w, x, y, z = q
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    return roll, pitch
+
+
+class TrotController:
+    """Joint commands at 1 kHz: each foot under its hip at the plan's height, the swing
+    pair's feet lifted, and every leg lengthened by k (x_i pitch - y_i roll): a foot on
+    the low side pushes the trunk level. (A derivative term on the body rates made the
+    legs chatter: the rates carry the hydraulic resonances; the trot needs none.)"""
+
+    def __init__(self, plan: Plan):
+        self.plan = plan
+        self.q = np.zeros(len(JOINTS))
+        self.h = H_CROUCH
+
+    def __call__(self, t, data) -> np.ndarray:
+        p = self.plan
+        roll, pitch = attitude(data.qpos[3:7])
+        self.h = p.height(t)
+        for i, g in enumerate(GEOMETRY):
+            tilt = p.k_att * (pitch * g.x - roll * g.y)
+            depth = self.h - FOOT_R - p.foot_lift(t, PAIR[g.name]) + tilt
+            qh, qk = robot.leg_ik(depth, 0.0, L1, L2, g.bend)
+            self.q[3 * i : 3 * i + 3] = (0.0, qh, qk)
+        return self.q
+
+
+@dataclass
+class QuadRun:
+    kind: str
+    actuator_line: str
+    rec: dict
+    timing: robot.Timing
+    plan: Plan
+    t_end: float
+    hyd: Hydraulics
+    fell: bool
+    frames: list = field(default_factory=list)
+    frame_labels: list = field(default_factory=list)
+    render_error: str | None = None
+
+    @property
+    def t(self):
+        return self.rec["t"]
+
+    def window(self, t0, t1):
+        return (self.t >= t0) & (self.t < t1)
+
+    def summary(self) -> dict:
+        pr = self.rec["probe"]
+        z, hc, roll, pitch = pr[:, 0], pr[:, 1], pr[:, 2], pr[:, 3]
+        s = {}
+        p = self.plan
+        stance = self.window(p.t_up[1] + 0.3, p.trot[0] if p.trot else self.t_end)
+        s["stance_z"] = float(z[stance].mean()) if stance.any() else math.nan
+        s["stance_err_max"] = float(np.abs(z[stance] - hc[stance]).max()) if stance.any() else math.nan
+        s["stance_tilt_max"] = (
+            float(np.degrees(np.maximum(np.abs(roll[stance]), np.abs(pitch[stance])).max()))
+            if stance.any()
+            else math.nan
+        )
+        w = self.window(*p.trot) if p.trot else np.zeros(0, bool)
+        if w.any():
+            s["trot_z"] = (float(z[w].min()), float(z[w].max()))
+            s["trot_roll_max"] = float(np.degrees(np.abs(roll[w]).max()))
+            s["trot_pitch_max"] = float(np.degrees(np.abs(pitch[w]).max()))
+            s["trot_drift"] = float(np.hypot(*(pr[w, 4:6][-1] - pr[w, 4:6][0])))
+        F = self.rec["F"]
+        s["F_max"], s["F_min"] = float(F.max()), float(F.min())
+        s["F_absmax_by_joint"] = {
+            kind: float(np.abs(F[:, j::3]).max()) for j, kind in enumerate(("haa", "hfe", "kfe"))
+        }
+        s["p_max"] = float(max(self.rec["p_A"].max(), self.rec["p_B"].max()))
+        s["x_rod_absmax"] = float(np.abs(self.rec["x_rod"]).max())
+        s["rtf"] = self.t_end / self.timing.wall
+        return s
+
+
+def run(
+    duration: float = 8.5,
+    short: bool = False,
+    kind: str = "auto",
+    version: str = "fmi2",
+    render: bool = True,
+    hyd: Hydraulics = HYD,
+) -> QuadRun:
+    if render:
+        robot.gl_backend()
+    import mujoco
+
+    plan = Plan.short() if short else Plan.full(duration)
+    h0 = H_STAND if short else H_CROUCH
+    t_end = 0.4 if short else duration
+    model = mujoco.MjModel.from_xml_string(mjcf())
+    data = mujoco.MjData(model)
+    levers = LeverSet(LEVERS)
+    ctrl = TrotController(plan)
+    data.qpos[2] = h0
+    q0 = ctrl(0.0, data)
+    for j, name in enumerate(JOINTS):
+        data.qpos[model.joint(name).qposadr[0]] = q0[j]
+    mujoco.mj_forward(model, data)
+    x0 = levers.rod(q0)[0]
+    bank, line = robot.make_bank(kind, len(JOINTS), hyd, x0, x0, version)
+
+    def probe(d):
+        roll, pitch = attitude(d.qpos[3:7])
+        return (d.qpos[2], ctrl.h, roll, pitch, d.qpos[0], d.qpos[1])
+
+    def fallen(d):
+        return d.qpos[2] < 0.2 or abs(d.qpos[4]) > 0.5 or abs(d.qpos[5]) > 0.5
+
+    sim = robot.Cosim(model, data, JOINTS, levers, bank, ctrl)
+    try:
+        sim.run(t_end, record_every=10, cmd_every=10, probe=probe, stop=fallen)
+    finally:
+        bank.close()
+    rec = sim.rec.arrays()
+    fell = data.time < t_end - 1e-3
+    r = QuadRun(bank.kind, line, rec, sim.timing, plan, float(data.time), hyd, fell)
+    if render:
+        render_frames(model, r)
+    return r
+
+
+def render_frames(model, r: QuadRun) -> None:
+    cam = robot.Camera(model, 420, 560, lookat=(0, 0, 0.35), distance=2.4, azimuth=145, elev=-16)
+    if cam.renderer is None:
+        r.render_error = cam.error
+        return
+    p = r.plan
+    times = {0.0: "crouch", p.t_up[1] + 0.5: "standing"}
+    if p.trot:
+        t0 = p.trot[0] + 2.0
+        times[t0 + 0.25 * p.swing / p.f_trot * 2] = "trot, LF+RH up"
+        times[t0 + (0.5 + 0.25 * p.swing * 2) / p.f_trot] = "trot, RF+LH up"
+    trunk = model.body("trunk").id
+    try:
+        for t, label in sorted(times.items()):
+            if t > r.t[-1]:
+                continue
+            k = min(int(np.searchsorted(r.t, t)), len(r.t) - 1)
+            r.frames.append(cam.at(model, r.rec["qpos"][k], track_body=trunk))
+            r.frame_labels.append(f"{r.t[k]:.2f} s: {label}")
+    finally:
+        cam.close()
+
+
+def plot(r: QuadRun, out: Path) -> None:
+    import ehsv
+
+    plt = ehsv.pyplot()
+    t = r.t
+    pr = r.rec["probe"]
+    fig, ax = plt.subplots(5, 1, sharex=True, figsize=(9, 11))
+    ax[0].plot(t, pr[:, 0], label="base height")
+    ax[0].plot(t, pr[:, 1], "--", lw=0.9, label="height command")
+    ax[0].set_ylabel("m")
+    ax[1].plot(t, np.degrees(pr[:, 2]), label="roll")
+    ax[1].plot(t, np.degrees(pr[:, 3]), label="pitch")
+    ax[1].set_ylabel("deg")
+    F = r.rec["F"] / 1e3
+    push, pull = r.hyd.stall_force()
+    for a, j, kind in zip(ax[2:], range(3), ("HAA", "HFE", "knee"), strict=True):
+        for i, g in enumerate(GEOMETRY):
+            a.plot(t, F[:, 3 * i + j], lw=0.8, label=f"{g.name}")
+        for f in (push, pull):
+            a.axhline(f / 1e3, color="grey", lw=0.6, ls="--")
+        a.set_ylabel(f"{kind} F_rod, kN")
+    ax[-1].set_xlabel("time, s")
+    if r.plan.trot:
+        for a in ax:
+            a.axvspan(*r.plan.trot, color="0.92", zorder=0)
+    for a in ax:
+        a.legend(fontsize=7, ncol=4, loc="upper right")
+        a.grid(alpha=0.3)
+    ax[0].set_title(
+        f"Hydraulic quadruped in MuJoCo, 12 {r.kind} actuators (68 kg, 16 MPa); trot shaded, -- stall",
+        fontsize=10,
+    )
+    cli.write_figure(fig, out)
+    plt.close(fig)
+
+
+def report(r: QuadRun) -> None:
+    s = r.summary()
+    print(r.actuator_line)
+    print(
+        f"supply {r.hyd.p_supply / 1e6:g} MPa, relief {r.hyd.p_crack / 1e6:g} MPa, "
+        f"position.Kp {r.hyd.Kp:g} A/m"
+    )
+    if r.fell:
+        print(f"  FELL at t = {r.t_end:.2f} s")
+    print(
+        f"  stance: base at {s['stance_z']:.4f} m (command {H_STAND} m, largest error "
+        f"{s['stance_err_max'] * 1e3:.1f} mm), tilt within {s['stance_tilt_max']:.2f} deg"
+    )
+    if "trot_z" in s:
+        p = r.plan
+        print(
+            f"  trot {p.trot[1] - p.trot[0]:.1f} s at {p.f_trot} Hz, {p.lift * 1e3:.0f} mm lift: base "
+            f"{s['trot_z'][0]:.3f} .. {s['trot_z'][1]:.3f} m, roll within {s['trot_roll_max']:.1f} deg, "
+            f"pitch within {s['trot_pitch_max']:.1f} deg, drift {s['trot_drift'] * 1e3:.0f} mm"
+        )
+    fj = s["F_absmax_by_joint"]
+    print(
+        f"  rod force peaks |F|: HAA {fj['haa']:.0f} N, HFE {fj['hfe']:.0f} N, knee {fj['kfe']:.0f} N "
+        f"(stall {r.hyd.stall_force()[0]:.0f} N push); chamber pressure peak {s['p_max'] / 1e6:.2f} MPa; "
+        f"rods within +-{s['x_rod_absmax'] * 1e3:.1f} mm"
+    )
+    print("  " + r.timing.line(r.t_end, len(JOINTS)))
+
+
+def main(argv=None) -> int:
+    ap = cli.parser(__doc__)
+    ap.add_argument("--duration", type=float, default=8.5, help="simulated time, s (default 8.5)")
+    ap.add_argument("--short", action="store_true", help="0.4 s standing from the stance (the test's run)")
+    ap.add_argument("--actuator", choices=("auto", "fmu", "stand-in"), default="auto")
+    ap.add_argument("--no-render", action="store_true")
+    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / "quadruped.png")
+    args = ap.parse_args(argv)
+    version = cli.version(args)
+    if args.actuator == "fmu" and cli.archive_missing(version):
+        return 1
+    r = run(args.duration, args.short, args.actuator, version, render=not args.no_render)
+    report(r)
+    plot(r, args.out)
+    if args.no_render:
+        print("picture: skipped (--no-render)")
+    elif r.render_error:
+        print(f"picture: skipped, no OpenGL context (MUJOCO_GL={robot.gl_backend()}): {r.render_error}")
+    elif r.frames:
+        out = args.out.with_name(args.out.stem + "_render.png")
+        robot.save_strip(r.frames, r.frame_labels, out)
+        print(f"picture: {out}")
+    return 1 if r.fell else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs what MuJoCo's offscreen renderer needs for the pictures of
+# cosim-examples/hydraulic_leg.py and quadruped.py (mujoco.Renderer without a display):
+#
+#   apt: libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri   EGL on Mesa (llvmpipe: no GPU needed),
+#                                                       MUJOCO_GL=egl, the examples' default
+#        libosmesa6                                     OSMesa, the fallback: MUJOCO_GL=osmesa
+#
+# Idempotent: a second run only checks. Needs root (or sudo) for apt-get on Debian.
+# Without these the examples still run and write their plots; they print one line saying
+# the picture was skipped and why.
+set -euo pipefail
+
+APT_PACKAGES=(libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libosmesa6)
+
+missing=()
+for p in "${APT_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+    sudo=""
+    [[ $(id -u) == 0 ]] || sudo="sudo"
+    echo "setup-gl: apt-get install ${missing[*]}" >&2
+    $sudo apt-get update -qq >&2
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
+        "${missing[@]}" >&2
+fi
+echo "setup-gl: ready" >&2
