@@ -2,7 +2,7 @@
 
 The trunk (20 kg) runs on a vertical slide rail above the ground; the leg hangs from it:
 hip flexion and knee hinges, thigh and shank 0.35 m, a foot with friction. Each joint is
-driven by one cylinder (bore 16 mm, rod 10 mm, stroke 80 mm) through a 40 mm lever
+driven by one cylinder (bore 16 mm, rod 10 mm, stroke 80 mm) through a 45 mm lever
 (ehsv.robot.Lever: the cylinder's base pivot 0.20 m / 0.25 m from the joint, the lever
 perpendicular at mid-stroke), supply 16 MPa, relief 21 MPa, the FMU's position loop on
 each rod. The co-simulation steps at 1e-4 s: mj_step1 -> rods' x, v from the joints
@@ -49,8 +49,9 @@ JOINTS = ("hip", "knee")
 
 
 def mjcf() -> str:
-    hip_base, hip_end = robot.cylinder_sites("hip_cyl", LEVERS[0], "y")
-    knee_base, knee_end = robot.cylinder_sites("knee_cyl", LEVERS[1], "y", joint_pos=(0, 0, -L1))
+    # the cylinders beside the links, on the camera's side (-y)
+    hip_base, hip_end = robot.cylinder_sites("hip_cyl", LEVERS[0], "y", side=-0.05)
+    knee_base, knee_end = robot.cylinder_sites("knee_cyl", LEVERS[1], "y", joint_pos=(0, 0, -L1), side=-0.045)
     return f"""
 <mujoco model="hydraulic_leg">
   <compiler angle="radian"/>
@@ -370,7 +371,8 @@ def plot(r: LegRun, out: Path) -> None:
         a.legend(fontsize=7, ncol=3, loc="upper right")
         a.grid(alpha=0.3)
     ax[0].set_title(
-        f"Hydraulic leg in MuJoCo, {r.kind} actuators: 20 kg trunk on a rail, 16 MPa, 40 mm levers",
+        f"Hydraulic leg in MuJoCo, {robot.KIND_LABEL[r.kind]} actuators: 20 kg trunk on a rail, "
+        "16 MPa, 45 mm levers",
         fontsize=10,
     )
     cli.write_figure(fig, out)

@@ -77,9 +77,12 @@ def _leg_xml(g: LegGeometry) -> tuple[str, str]:
     haa, hfe, kfe = g.levers
     n = g.name
     hip = (g.x, g.y, 0.0)
-    haa_base, haa_end = robot.cylinder_sites(f"{n}_haa_cyl", haa, "x", joint_pos=hip)
-    hfe_base, hfe_end = robot.cylinder_sites(f"{n}_hfe_cyl", hfe, "y")
-    kfe_base, kfe_end = robot.cylinder_sites(f"{n}_kfe_cyl", kfe, "y", joint_pos=(0, 0, -L1))
+    out = 1 if g.y > 0 else -1  # the cylinders beside the links, outwards
+    haa_base, haa_end = robot.cylinder_sites(f"{n}_haa_cyl", haa, "x", joint_pos=hip, side=-0.06 * g.bend)
+    hfe_base, hfe_end = robot.cylinder_sites(f"{n}_hfe_cyl", hfe, "y", side=0.05 * out)
+    kfe_base, kfe_end = robot.cylinder_sites(
+        f"{n}_kfe_cyl", kfe, "y", joint_pos=(0, 0, -L1), side=0.045 * out
+    )
     knee_range = "0.05 2.6" if g.bend > 0 else "-2.6 -0.05"
     body = f"""
       <body name="{n}_hip" pos="{robot.fmt(hip)}">
@@ -353,7 +356,7 @@ def plot(r: QuadRun, out: Path) -> None:
     push, pull = r.hyd.stall_force()
     for a, j, kind in zip(ax[2:], range(3), ("HAA", "HFE", "knee"), strict=True):
         for i, g in enumerate(GEOMETRY):
-            a.plot(t, F[:, 3 * i + j], lw=0.8, label=f"{g.name}")
+            a.plot(t, F[:, 3 * i + j], "-" if g.bend < 0 else "--", lw=0.8, label=f"{g.name}")
         for f in (push, pull):
             a.axhline(f / 1e3, color="grey", lw=0.6, ls="--")
         a.set_ylabel(f"{kind} F_rod, kN")
@@ -365,7 +368,8 @@ def plot(r: QuadRun, out: Path) -> None:
         a.legend(fontsize=7, ncol=4, loc="upper right")
         a.grid(alpha=0.3)
     ax[0].set_title(
-        f"Hydraulic quadruped in MuJoCo, 12 {r.kind} actuators (68 kg, 16 MPa); trot shaded, -- stall",
+        f"Hydraulic quadruped in MuJoCo, 12 {robot.KIND_LABEL[r.kind]} actuators (68 kg, 16 MPa); "
+        "trot shaded, -- stall",
         fontsize=10,
     )
     cli.write_figure(fig, out)

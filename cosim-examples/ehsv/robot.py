@@ -61,6 +61,7 @@ class Hydraulics:
     dp_override: float = 1e6  # Pa, relief.dp_override (the FMU's default)
     Kp: float = 0.6  # A/m, position.Kp (0.6 mA per mm)
     C_leak: float = 1e-12  # m3/(s Pa), cylinder.C_leak: a bypass across the piston
+    f_loop: float = 10e3  # Hz, loop.f_sample: the position loop sampled at the host's 1e-4 s
     bore: float = 0.016
     rod: float = 0.010
     stroke: float = 0.08
@@ -92,6 +93,7 @@ class Hydraulics:
             "relief.dp_override": self.dp_override,
             "position.Kp": self.Kp,
             "cylinder.C_leak": self.C_leak,
+            "loop.f_sample": self.f_loop,
             "p_supply": self.p_supply,
         }
 
@@ -184,10 +186,15 @@ def motion_port_missing(version: str = "fmi2") -> str | None:
     return None
 
 
+#: how the figures name the actuators of each bank kind
+KIND_LABEL = {"fmu": "EhsvActuator FMU", "stand-in": "Python stand-in"}
+
+
 class ActuatorBank:
     """n actuators stepped together: ``step(t, h, x, v, x_ref)`` takes the rods' positions
     and velocities (m, m/s) at t and the position commands, advances every actuator to
-    t + h and leaves the rod forces at t + h in ``F`` (numpy array, N).
+    t + h and leaves the rod forces over the step in ``F`` (numpy array, N; the FMU's
+    F_rod: the force's mean over the step).
     ``monitor()`` returns the MONITORED outputs, shape (len(MONITORED), n)."""
 
     kind = "abstract"
@@ -213,6 +220,10 @@ class FmuBank(ActuatorBank):
     more than the FMU's own step here. A status above Warning raises at once."""
 
     kind = "fmu"
+    #: the port's variables: what each step sets (in this order) and reads
+    INPUTS = ("x_rod", "v_rod", "x_ref")
+    OUTPUT = "F_rod"
+    MODES = {"cylinder.port": PORT_MOTION, "control_mode": CONTROL_POSITION}
 
     def __init__(self, n: int, hyd: Hydraulics, x0, x_ref0, version: str = "fmi2", extra=None):
         from .fmu import Ehsv
@@ -223,13 +234,10 @@ class FmuBank(ActuatorBank):
         for i in range(n):
             e = Ehsv(version, instance_name=f"cyl{i}")
             self.insts.append(e)
-            e.set("cylinder.port", PORT_MOTION)
-            e.set("control_mode", CONTROL_POSITION)
-            for name, value in {**hyd.fmu_values(), **(extra or {})}.items():
+            for name, value in {**self.MODES, **hyd.fmu_values(), **(extra or {})}.items():
                 e.set(name, value)
-            e.set("x_rod", float(x0[i]))
-            e.set("v_rod", 0.0)
-            e.set("x_ref", float(x_ref0[i]))
+            for name, value in zip(self.INPUTS, (x0[i], 0.0, x_ref0[i]), strict=True):
+                e.set(name, float(value))
             e.initialize(start_time=0.0)
         e = self.insts[0]
         fmi2 = version == "fmi2"
@@ -239,55 +247,80 @@ class FmuBank(ActuatorBank):
         self._do = dll.fmi2DoStep if fmi2 else dll.fmi3DoStep
         self._fmi2 = fmi2
         self._c = [inst.fmu.component for inst in self.insts]
-        self._vr_in = (ctypes.c_uint32 * 3)(*(e.vr(k) for k in ("x_rod", "v_rod", "x_ref")))
-        self._vr_F = (ctypes.c_uint32 * 1)(e.vr("F_rod"))
+        self._vr_in = (ctypes.c_uint32 * 3)(*(e.vr(k) for k in self.INPUTS))
+        self._vr_F = (ctypes.c_uint32 * 1)(e.vr(self.OUTPUT))
         self._vr_mon = (ctypes.c_uint32 * len(MONITORED))(*(e.vr(k) for k in MONITORED))
         self._in = [(ctypes.c_double * 3)() for _ in range(n)]
         self._out = (ctypes.c_double * n)()
-        self._mon = (ctypes.c_double * len(MONITORED))()
         if not fmi2:  # fmi3DoStep's four out-arguments
             self._b = [ctypes.c_bool() for _ in range(3)]
             self._last = ctypes.c_double()
+        self._T, self._H = ctypes.c_double(), ctypes.c_double()
         self._calls = self._make_calls()
 
     def _make_calls(self):
-        """One closure per actuator that does its three calls (bound locals: lean)."""
+        """One closure per actuator that does its three calls (bound locals: lean).
+
+        The functions come from a second handle on the same library, without fmpy's
+        argtypes: every argument is handed over as a ready C object (the instance pointer,
+        size_t counts, the time and step size as c_double updated once per step), which
+        saves ctypes' conversions, about a microsecond per actuator and step."""
         calls = []
-        set_, get_, do_ = self._set, self._get, self._do
+        self._monitor_calls = []
+        raw = ctypes.CDLL(self.insts[0].fmu.dll._name)  # dlopen: the same loaded library
+        prefix, setter, getter = (
+            ("fmi2", "SetReal", "GetReal") if self._fmi2 else ("fmi3", "SetFloat64", "GetFloat64")
+        )
+        set_, do_, get_ = (getattr(raw, prefix + f) for f in (setter, "DoStep", getter))
         vr_in, vr_F = self._vr_in, self._vr_F
+        n3, n1 = ctypes.c_size_t(3), ctypes.c_size_t(1)
+        m = len(MONITORED)
+        nm, vr_mon = ctypes.c_size_t(m), self._vr_mon
+        T, H = self._T, self._H
         out = self._out
-        for i, c in enumerate(self._c):
+        for i, comp in enumerate(self._c):
+            c = ctypes.c_void_p(comp)
             buf = self._in[i]
             dst = ctypes.cast(ctypes.addressof(out) + 8 * i, ctypes.POINTER(ctypes.c_double))
             if self._fmi2:
+                yes = ctypes.c_int(1)
 
-                def call(t, h, x, v, xr, c=c, buf=buf, dst=dst):
+                def call(x, v, xr, c=c, buf=buf, dst=dst, yes=yes):
                     buf[0] = x
                     buf[1] = v
                     buf[2] = xr
-                    return set_(c, vr_in, 3, buf) | do_(c, t, h, 1) | get_(c, vr_F, 1, dst)
+                    return set_(c, vr_in, n3, buf) | do_(c, T, H, yes) | get_(c, vr_F, n1, dst)
 
             else:
+                yes = ctypes.c_bool(True)
                 b0, b1, b2 = (ctypes.byref(b) for b in self._b)
                 last = ctypes.byref(self._last)
 
-                def call(t, h, x, v, xr, c=c, buf=buf, dst=dst, b0=b0, b1=b1, b2=b2, last=last):
+                def call(x, v, xr, c=c, buf=buf, dst=dst, yes=yes, b0=b0, b1=b1, b2=b2, last=last):
                     buf[0] = x
                     buf[1] = v
                     buf[2] = xr
                     return (
-                        set_(c, vr_in, 3, buf, 3)
-                        | do_(c, t, h, True, b0, b1, b2, last)
-                        | get_(c, vr_F, 1, dst, 1)
+                        set_(c, vr_in, n3, buf, n3)
+                        | do_(c, T, H, yes, b0, b1, b2, last)
+                        | get_(c, vr_F, n1, dst, n1)
                     )
 
             calls.append(call)
+
+            def mon(res, c=c, off=8 * m * i):
+                dst = ctypes.cast(ctypes.addressof(res) + off, ctypes.POINTER(ctypes.c_double))
+                return get_(c, vr_mon, nm, dst) if self._fmi2 else get_(c, vr_mon, nm, dst, nm)
+
+            self._monitor_calls.append(mon)
         return calls
 
     def step(self, t, h, x, v, x_ref) -> None:
+        self._T.value = t
+        self._H.value = h
         status = 0
         for call, xi, vi, ri in zip(self._calls, x, v, x_ref, strict=True):
-            status |= call(t, h, xi, vi, ri)
+            status |= call(xi, vi, ri)
         if status > 1:
             self._raise(t)
         self.F[:] = self._out
@@ -297,14 +330,11 @@ class FmuBank(ActuatorBank):
         raise RuntimeError(f"an FMU call failed at t = {t:.6g} s\n{logs}")
 
     def monitor(self) -> np.ndarray:
-        res = np.empty((len(MONITORED), self.n))
-        for i, c in enumerate(self._c):
-            if self._fmi2:
-                self._get(c, self._vr_mon, len(MONITORED), self._mon)
-            else:
-                self._get(c, self._vr_mon, len(MONITORED), self._mon, len(MONITORED))
-            res[:, i] = self._mon
-        return res
+        m = len(MONITORED)
+        res = (ctypes.c_double * (m * self.n))()  # actuator by actuator
+        for call in self._monitor_calls:
+            call(res)
+        return np.ctypeslib.as_array(res).reshape(self.n, m).T.copy()
 
     def close(self) -> None:
         for inst in self.insts:
@@ -320,8 +350,9 @@ class StandInBank(ActuatorBank):
     lag (the coil behind the op-amp driver being much faster), the critically centred
     valve's port flows ``Q = K3 x_spool sqrt(dp / (dp_rated / 2))`` (linear below 1 bar),
     the two chambers' pressures with the rod moving as x + v (t - t_k), the relief valves
-    as a ceiling at crack + override, the cavitation floor, viscous + smoothed Coulomb
-    friction and the 1e8 N/m end stops. F_rod = p_A A_A - p_B A_B - friction - end stop."""
+    as a ceiling at crack + override, the cavitation floor, the piston's bypass leakage,
+    viscous + smoothed Coulomb friction and the 1e8 N/m end stops. F_rod = p_A A_A -
+    p_B A_B - friction - end stop, the step's mean as the FMU reports it."""
 
     kind = "stand-in"
 
@@ -362,6 +393,7 @@ class StandInBank(ActuatorBank):
         a = 1.0 - math.exp(-dt / self.tau_spool)
         p_hi = hyd.p_crack + hyd.dp_override
         p_lo = -0.09e6
+        F_h = 0.0
         for k in range(self.sub):
             xk = x + v * (k + 0.5) * dt
             self.Qv += a * (self.K_flow * i_cmd - self.Qv)
@@ -373,14 +405,15 @@ class StandInBank(ActuatorBank):
             Q_L = hyd.C_leak * (self.p_A - self.p_B)
             self.p_A = np.clip(self.p_A + dt * self.beta / V_A * (Q_A - A_A * v - Q_L), p_lo, p_hi)
             self.p_B = np.clip(self.p_B + dt * self.beta / V_B * (-Q_B + A_B * v + Q_L), p_lo, p_hi)
+            F_h = F_h + (self.p_A * A_A - self.p_B * A_B)
         self.i = self.Qv / self.K_flow
-        xe = x + v * h
-        over = np.abs(xe) - S / 2
+        xm = x + v * (h / 2)  # the force is the step's mean, as the FMU's F_rod
+        over = np.abs(xm) - S / 2
         stop = np.where(
-            over > 0, np.maximum(0.0, self.k_stop * over + self.c_stop * v * np.sign(xe)) * np.sign(xe), 0.0
+            over > 0, np.maximum(0.0, self.k_stop * over + self.c_stop * v * np.sign(xm)) * np.sign(xm), 0.0
         )
         friction = self.b * v + self.F_c * np.tanh(v / self.v_c)
-        self.F[:] = self.p_A * A_A - self.p_B * A_B - friction - stop
+        self.F[:] = F_h / self.sub - friction - stop
 
     def monitor(self) -> np.ndarray:
         return np.vstack([self.p_A, self.p_B, self.i])
@@ -468,6 +501,13 @@ class Record:
         return out
 
 
+def _as_slice(idx: np.ndarray):
+    """A slice for consecutive indices (a view: cheaper than fancy indexing), else idx."""
+    if len(idx) and np.all(np.diff(idx) == 1):
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
+
+
 class Cosim:
     """A MuJoCo model whose hinges ``joints`` are each driven by one actuator of ``bank``
     through ``levers``.
@@ -514,7 +554,7 @@ class Cosim:
         h = float(model.opt.timestep)
         n_steps = int(round((t_end - data.time) / h))
         qpos, qvel, qfrc = data.qpos, data.qvel, data.qfrc_applied
-        qadr, dadr, rod = self.qadr, self.dadr, self.levers.rod
+        qadr, dadr, rod = _as_slice(self.qadr), _as_slice(self.dadr), self.levers.rod
         step1, step2 = mj.mj_step1, mj.mj_step2
         rec, tim = self.rec, self.timing
         pc = time.perf_counter
@@ -522,13 +562,14 @@ class Cosim:
         t_mj = t_act = 0.0
         done = 0
         w0 = pc()
+        t0 = data.time
         for k in range(n_steps):
-            t = data.time
+            t = t0 + k * h
             c0 = pc()
             step1(model, data)
             c1 = pc()
             if k % cmd_every == 0:
-                self.q_cmd = np.asarray(self.controller(t, data), dtype=float)
+                self.q_cmd = np.array(self.controller(t, data), dtype=float)
                 xref = rod(self.q_cmd)[0].tolist()
                 if stop is not None and stop(data):
                     break
@@ -547,7 +588,7 @@ class Cosim:
             t_act += c3 - c2
             if k % record_every == 0:
                 rec.t.append(t + h)
-                rec.q.append(q)
+                rec.q.append(q.copy())
                 rec.q_cmd.append(self.q_cmd)
                 rec.x_rod.append(x)
                 rec.F.append(bank.F.copy())
@@ -576,15 +617,21 @@ def fmt(v: Sequence[float]) -> str:
     return " ".join(f"{c:.6g}" for c in v)
 
 
-def cylinder_sites(name: str, lever: Lever, axis: str, joint_pos=(0.0, 0.0, 0.0)) -> tuple[str, str]:
+def cylinder_sites(
+    name: str, lever: Lever, axis: str, joint_pos=(0.0, 0.0, 0.0), side: float = 0.0
+) -> tuple[str, str]:
     """MJCF of the two sites (base pivot in the parent body, relative to the joint at
-    ``joint_pos``; rod end in the child body, whose origin is the joint)."""
-    b = planar(lever.base_angle, lever.d, axis)
+    ``joint_pos``; rod end in the child body, whose origin is the joint), both moved by
+    ``side`` along the joint's axis (the cylinder beside the links: same length)."""
+    k = 1 if axis == "y" else 0
+    b = list(planar(lever.base_angle, lever.d, axis))
+    e = list(planar(lever.rod_end_angle(), lever.r, axis))
+    b[k] += side
+    e[k] += side
     base = tuple(j + c for j, c in zip(joint_pos, b, strict=True))
-    end = planar(lever.rod_end_angle(), lever.r, axis)
     return (
         f'<site name="{name}_base" pos="{fmt(base)}" size="0.012" rgba=".3 .3 .35 1"/>',
-        f'<site name="{name}_end" pos="{fmt(end)}" size="0.01" rgba=".75 .75 .8 1"/>',
+        f'<site name="{name}_end" pos="{fmt(e)}" size="0.01" rgba=".75 .75 .8 1"/>',
     )
 
 
