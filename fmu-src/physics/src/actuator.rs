@@ -85,24 +85,9 @@ impl Actuator {
     }
 
     fn equilibrium(&mut self, i_ref: f64, vmax: f64, start_time: f64) {
-        let p = self.params;
-        let mut z = Vector::zeros();
-        z[IREF] = i_ref;
-        z[VMAX] = vmax;
-        z[ONE] = 1.0;
-        let u = (p.r_total * i_ref).clamp(-vmax, vmax);
-        z[U] = u;
-        z[I] =
-            if p.driver == DriverKind::IdealCurrent { i_ref } else { coil::steady_current(&p, u) };
-        // An unsaturated PI holds e = 0 with ui = u; a saturated one sits at the rail with
-        // its integrator stopped at the rail value.
-        z[UI] = u;
-        (z[XF], z[XS]) = valve::equilibrium(&p, z[I]);
-        if p.driver == DriverKind::HBridge {
-            // The average bridge voltage holds the current; the PWM starts at the next period.
-            self.digital =
-                Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_ref, vmax, start_time);
-            z[U] = self.digital.output(vmax);
+        let (mut z, digital) = rest_state(&self.params, i_ref, vmax, start_time);
+        if let Some(digital) = digital {
+            self.digital = digital;
         }
         self.settle(&mut z);
         self.z = z;
@@ -111,10 +96,7 @@ impl Actuator {
     /// Chooses the stops and driver mode consistent with `z`, puts `z` on them and makes
     /// their system the active one. Returns whether anything changed.
     pub(crate) fn settle(&mut self, z: &mut Vector) -> bool {
-        let stops = valve::settle_stops(&self.params, &self.systems[0].a, z);
-        let systems = &self.systems;
-        let mode = driver::consistent_mode(&self.params, z, |m| &systems[m.index()].a);
-        driver::project_onto(&self.params, &self.digital, z, mode);
+        let (mode, stops) = consistent_state(&self.params, &self.systems, &self.digital, z);
         let changed = (mode, stops) != (self.mode, self.stops);
         if changed {
             (self.mode, self.stops) = (mode, stops);
@@ -157,6 +139,49 @@ impl Actuator {
         cylinder::write_outputs(c, &self.cylinder.state, z[XS], self.p_supply, &mut out);
         out
     }
+}
+
+/// Driver, coil and valve at rest under the current command `i_cmd` and the rail `vmax`, not
+/// yet put on a mode; for the H-bridge also the digital state that holds the current on
+/// average from `start_time` (its PWM starts at the next period).
+pub(crate) fn rest_state(
+    p: &Coefficients,
+    i_cmd: f64,
+    vmax: f64,
+    start_time: f64,
+) -> (Vector, Option<Digital>) {
+    let mut z = Vector::zeros();
+    z[IREF] = i_cmd;
+    z[VMAX] = vmax;
+    z[ONE] = 1.0;
+    let u = (p.r_total * i_cmd).clamp(-vmax, vmax);
+    z[U] = u;
+    z[I] = if p.driver == DriverKind::IdealCurrent { i_cmd } else { coil::steady_current(p, u) };
+    // An unsaturated PI holds e = 0 with ui = u; a saturated one sits at the rail with
+    // its integrator stopped at the rail value.
+    z[UI] = u;
+    (z[XF], z[XS]) = valve::equilibrium(p, z[I]);
+    if p.driver != DriverKind::HBridge {
+        return (z, None);
+    }
+    let digital = Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_cmd, vmax, start_time);
+    z[U] = digital.output(vmax);
+    (z, Some(digital))
+}
+
+/// The valve stops and the driver mode consistent with `z`, and `z` put on them: an impact
+/// takes the flapper's outward velocity at its limit, the held parts sit at their limits,
+/// the algebraic part of the driver follows the mode. None of it depends on the mode before.
+pub(crate) fn consistent_state(
+    c: &Coefficients,
+    systems: &[ModeSystem; MODES.len()],
+    digital: &Digital,
+    z: &mut Vector,
+) -> (Mode, valve::Stops) {
+    let stops = valve::settle_stops(c, &systems[0].a, z);
+    let mode = driver::consistent_mode(c, z, |m| &systems[m.index()].a);
+    driver::project_onto(c, digital, z, mode);
+    (mode, stops)
 }
 
 /// The system `mode` runs on: its own without travel stops, else the one with the stops

@@ -122,6 +122,16 @@ impl Integrator for ExactIntegrator {
         self.cache = probe.cache;
     }
 
+    /// The fixed point goes (it was found under the old coefficients); with new mode systems
+    /// the propagators and slew exits go too.
+    fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool) {
+        self.fixed_point = None;
+        if systems_rebuilt {
+            self.slew_exits = slew_end::slew_exits(&actuator.systems);
+            self.cache.clear();
+        }
+    }
+
     fn count_work(&self, work: &mut Work) {
         work.exponentials += self.cache.exponentials;
     }

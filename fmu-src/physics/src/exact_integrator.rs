@@ -242,6 +242,13 @@ impl PropagatorCache {
         }
     }
 
+    /// Forgets every propagator (the systems they were built for changed); the count of
+    /// exponentials stays.
+    pub(crate) fn clear(&mut self) {
+        self.keys = [(usize::MAX, 0); CACHE_SLOTS];
+        self.next = 0;
+    }
+
     /// `system` names the (mode, stops) pair of `sys`. `exact`: key the sub-step by all
     /// its bits (whole communication steps: they repeat exactly, and a settled state then
     /// maps onto itself bit for bit, which lets `evolve` skip it). At least `min_substeps`

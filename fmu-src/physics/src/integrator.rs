@@ -70,6 +70,10 @@ pub(crate) trait Integrator {
     {
     }
 
+    /// The actuator's coefficients changed (a retune); `systems_rebuilt`: so did its mode
+    /// systems. What the integrator derived from them goes; its work counters stay.
+    fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool);
+
     /// Adds the work this integrator counts itself to `work`.
     fn count_work(&self, _work: &mut Work) {}
 }
@@ -86,6 +90,13 @@ impl ChosenIntegrator {
     pub(crate) fn new(method: SolverMethod, actuator: &Actuator) -> ChosenIntegrator {
         match method {
             SolverMethod::Exact => ChosenIntegrator::Exact(ExactIntegrator::new(actuator)),
+        }
+    }
+
+    /// The method this integrator implements.
+    pub(crate) fn method(&self) -> SolverMethod {
+        match self {
+            ChosenIntegrator::Exact(_) => SolverMethod::Exact,
         }
     }
 }
@@ -115,6 +126,12 @@ impl Integrator for ChosenIntegrator {
             (ChosenIntegrator::Exact(exact), ChosenIntegrator::Exact(probe)) => {
                 exact.adopt_prepared(probe)
             }
+        }
+    }
+
+    fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool) {
+        match self {
+            ChosenIntegrator::Exact(exact) => exact.retuned(actuator, systems_rebuilt),
         }
     }
 

@@ -101,6 +101,35 @@ impl Coefficients {
             wn: 2.0 * std::f64::consts::PI * v.f_n,
         })
     }
+
+    /// What the mode systems are built from, as bits: the driver's PI loop (gains, slew
+    /// rate), the coil, and the valve (first stage, spool, stops). Equal keys give the same
+    /// systems bit for bit.
+    pub(crate) fn mode_system_key(&self) -> [u64; 19] {
+        let v = &self.valve;
+        [
+            self.kp,
+            self.ki,
+            self.slew_rate,
+            self.inductance,
+            self.r_total,
+            self.k_backemf,
+            self.wn,
+            v.k1,
+            v.kf,
+            v.kw,
+            v.k2,
+            v.k3,
+            v.spool_area,
+            v.zeta,
+            v.f_n,
+            v.x_flapper_max,
+            v.x_spool_max,
+            v.dp_rated,
+            v.dp_laminar,
+        ]
+        .map(f64::to_bits)
+    }
 }
 
 /// `z' = A z` for one driver mode, the valve free of its stops: coil, valve, then driver
