@@ -145,7 +145,8 @@ class Plan:
 
     @staticmethod
     def full(duration: float) -> Plan:
-        return Plan(t_up=(0.2, 1.2), squat=(2.0, 2.0 + 3 / 1.5), hop=4.4 if duration >= 5.8 else None)
+        squat = (2.0, 2.0 + 3 / 1.5) if duration >= 4.2 else None
+        return Plan(t_up=(0.2, 1.2), squat=squat, hop=4.4 if duration >= 5.8 else None)
 
     @staticmethod
     def short() -> Plan:
@@ -413,7 +414,7 @@ def report(r: LegRun) -> None:
         f"coil current peak {s['i_peak'] * 1e3:.2f} mA"
     )
     print(f"  lever check: MuJoCo's tendon length vs the lever's L(q): {r.tendon_error * 1e6:.2f} um")
-    print("  " + r.timing.line(r.t_end, len(LEVERS)))
+    print("  " + r.timing.line(r.t_end, len(LEVERS), r.kind))
 
 
 def main(argv=None) -> int:

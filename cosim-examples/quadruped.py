@@ -402,7 +402,7 @@ def report(r: QuadRun) -> None:
         f"(stall {r.hyd.stall_force()[0]:.0f} N push); chamber pressure peak {s['p_max'] / 1e6:.2f} MPa; "
         f"rods within +-{s['x_rod_absmax'] * 1e3:.1f} mm"
     )
-    print("  " + r.timing.line(r.t_end, len(JOINTS)))
+    print("  " + r.timing.line(r.t_end, len(JOINTS), r.kind))
 
 
 def main(argv=None) -> int:

@@ -345,7 +345,7 @@ class FmuBank(ActuatorBank):
 class StandInBank(ActuatorBank):
     """The motion port's interface in numpy, for archives that do not have it yet.
 
-    The same physics in outline, explicit, 4 sub-steps per call: a P position loop
+    The same physics in outline, explicit, 2 sub-steps per call: a P position loop
     (``Kp``, limited to +-10 mA) whose current the valve follows with its 1.19 ms spool
     lag (the coil behind the op-amp driver being much faster), the critically centred
     valve's port flows ``Q = K3 x_spool sqrt(dp / (dp_rated / 2))`` (linear below 1 bar),
@@ -356,7 +356,7 @@ class StandInBank(ActuatorBank):
 
     kind = "stand-in"
 
-    def __init__(self, n: int, hyd: Hydraulics, x0, x_ref0, substeps: int = 4):
+    def __init__(self, n: int, hyd: Hydraulics, x0, x_ref0, substeps: int = 2):
         self.n, self.hyd, self.sub = n, hyd, substeps
         self.F = np.zeros(n)
         self.K_flow = 0.025268  # m3/s per A, K3 K1 / Kw
@@ -471,13 +471,14 @@ class Timing:
     def python(self) -> float:
         return self.wall - self.mujoco - self.actuators
 
-    def line(self, t_sim: float, n_act: int) -> str:
+    def line(self, t_sim: float, n_act: int, kind: str = "fmu") -> str:
         us = 1e6 / max(self.steps, 1)
         return (
             f"wall {self.wall:.2f} s for {t_sim:.2f} s simulated: real-time factor "
             f"{t_sim / self.wall:.2f} (> 1 is faster than real time); per step "
             f"{self.wall * us:.1f} us = MuJoCo {self.mujoco * us:.1f} + actuators "
-            f"({n_act} x set/doStep/get) {self.actuators * us:.1f} + Python {self.python * us:.1f}"
+            f"({n_act} x {'set/doStep/get' if kind == 'fmu' else kind}) {self.actuators * us:.1f} + "
+            f"Python {self.python * us:.1f}"
         )
 
 
