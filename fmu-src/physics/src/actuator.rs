@@ -18,7 +18,7 @@ pub(crate) struct Actuator {
     /// own system in `systems` serves: [`current_system`]).
     pub(crate) active: ModeSystem,
     /// Discrete state of the H-bridge's digital loop and PWM.
-    pub(crate) digital: Digital,
+    pub(crate) hbridge: HBridgeState,
     pub(crate) outer: OuterLoop,
     pub(crate) cylinder: DrivenCylinder,
     /// Supply pressure of the last step (the port flows depend on it).
@@ -59,13 +59,13 @@ impl Actuator {
             mode: Mode::Linear,
             stops: valve::Stops::default(),
             active: systems[Mode::Linear.index()],
-            digital: Digital::default(),
+            hbridge: HBridgeState::default(),
             outer: OuterLoop::default(),
-            cylinder: DrivenCylinder::new(CylinderState::default(), IntegratorMemory::new(rtol)),
+            cylinder: DrivenCylinder::new(CylinderState::default(), RosenbrockMemory::new(rtol)),
             p_supply: inputs.p_supply,
             work: Work::default(),
         };
-        let held = Held::new(&params, inputs);
+        let held = HeldInputs::new(&params, inputs);
         params.cylinder.check_supply(held.p_supply)?;
         actuator.outer = OuterLoop::at_start(&params.loops, held.reference, start_time);
         actuator.cylinder.state =
@@ -76,7 +76,7 @@ impl Actuator {
     }
 
     /// The coil current command: the input, or the outer loop's output.
-    pub(crate) fn current_command(&self, inputs: &Held) -> f64 {
+    pub(crate) fn current_command(&self, inputs: &HeldInputs) -> f64 {
         if self.params.loops.mode == ControlMode::Current {
             inputs.i_ref
         } else {
@@ -85,9 +85,9 @@ impl Actuator {
     }
 
     fn equilibrium(&mut self, i_ref: f64, vmax: f64, start_time: f64) {
-        let (mut z, digital) = rest_state(&self.params, i_ref, vmax, start_time);
-        if let Some(digital) = digital {
-            self.digital = digital;
+        let (mut z, hbridge) = rest_state(&self.params, i_ref, vmax, start_time);
+        if let Some(hbridge) = hbridge {
+            self.hbridge = hbridge;
         }
         self.settle(&mut z);
         self.z = z;
@@ -96,7 +96,7 @@ impl Actuator {
     /// Chooses the stops and driver mode consistent with `z`, puts `z` on them and makes
     /// their system the active one. Returns whether anything changed.
     pub(crate) fn settle(&mut self, z: &mut Vector) -> bool {
-        let (mode, stops) = consistent_state(&self.params, &self.systems, &self.digital, z);
+        let (mode, stops) = consistent_state(&self.params, &self.systems, &self.hbridge, z);
         let changed = (mode, stops) != (self.mode, self.stops);
         if changed {
             (self.mode, self.stops) = (mode, stops);
@@ -111,9 +111,9 @@ impl Actuator {
     /// Takes a new current command or rail into the state. A state that ended the last step
     /// is consistent with its mode; only a new command or rail (or a restored state) needs
     /// the mode chosen again.
-    pub(crate) fn follow_command(&mut self, inputs: &Held, events: &mut StepEvents) {
+    pub(crate) fn follow_command(&mut self, inputs: &HeldInputs, events: &mut StepEvents) {
         let i_cmd = self.current_command(inputs);
-        if self.z[IREF] != i_cmd || self.z[VMAX] != inputs.rail {
+        if self.z[I_CMD] != i_cmd || self.z[RAIL] != inputs.rail {
             let mut z = self.z;
             driver::apply_inputs(&self.params, &mut z, i_cmd, inputs.rail);
             let before = self.mode;
@@ -129,7 +129,7 @@ impl Actuator {
         let mut out = Outputs {
             i_coil: z[I],
             u_driver: z[U],
-            driver_saturated: driver::saturated(&self.params, self.mode, &self.digital, z),
+            driver_saturated: driver::saturated(&self.params, self.mode, &self.hbridge, z),
             x_flapper: z[XF],
             x_spool: z[XS],
             q_valve: valve::no_load_flow(&self.params, z[XS]),
@@ -149,10 +149,10 @@ pub(crate) fn rest_state(
     i_cmd: f64,
     vmax: f64,
     start_time: f64,
-) -> (Vector, Option<Digital>) {
+) -> (Vector, Option<HBridgeState>) {
     let mut z = Vector::zeros();
-    z[IREF] = i_cmd;
-    z[VMAX] = vmax;
+    z[I_CMD] = i_cmd;
+    z[RAIL] = vmax;
     z[ONE] = 1.0;
     let u = (p.r_total * i_cmd).clamp(-vmax, vmax);
     z[U] = u;
@@ -164,9 +164,9 @@ pub(crate) fn rest_state(
     if p.driver != DriverKind::HBridge {
         return (z, None);
     }
-    let digital = Digital::at_equilibrium(&p.hbridge, u, p.r_total * i_cmd, vmax, start_time);
-    z[U] = digital.output(vmax);
-    (z, Some(digital))
+    let hbridge = HBridgeState::at_equilibrium(&p.hbridge, u, p.r_total * i_cmd, vmax, start_time);
+    z[U] = hbridge.output(vmax);
+    (z, Some(hbridge))
 }
 
 /// The valve stops and the driver mode consistent with `z`, and `z` put on them: an impact
@@ -175,12 +175,12 @@ pub(crate) fn rest_state(
 pub(crate) fn consistent_state(
     c: &Coefficients,
     systems: &[ModeSystem; MODES.len()],
-    digital: &Digital,
+    hbridge: &HBridgeState,
     z: &mut Vector,
 ) -> (Mode, valve::Stops) {
     let stops = valve::settle_stops(c, &systems[0].a, z);
     let mode = driver::consistent_mode(c, z, |m| &systems[m.index()].a);
-    driver::project_onto(c, digital, z, mode);
+    driver::project_onto(c, hbridge, z, mode);
     (mode, stops)
 }
 

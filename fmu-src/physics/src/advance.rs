@@ -5,7 +5,8 @@
 use super::integrator::{Integrator, Segment};
 use super::*;
 
-/// Bounds the work of one doStep with the PWM driver (each instant costs ~0.3 us).
+/// Bounds the work of one step with the PWM driver (each instant ends a segment): a step
+/// holding more instants is refused as far too long for the PWM.
 const MAX_TIME_EVENTS_PER_STEP: u64 = 10_000_000;
 
 /// The key of [`Physics`]'s `resting`: the inputs and the step size, as bits.
@@ -23,7 +24,7 @@ impl Physics {
     /// No sampling or PWM clock will ever tick (the loops are continuous or absent).
     fn clocks_idle(&self) -> bool {
         let a = &self.actuator;
-        a.digital.events_until(&a.params.hbridge, f64::INFINITY) == 0
+        a.hbridge.events_until(&a.params.hbridge, f64::INFINITY) == 0
             && a.outer.events_until(&a.params.loops, f64::INFINITY) == 0
     }
 
@@ -38,7 +39,7 @@ impl Physics {
         let key = rest_key(inputs, step);
         let clocks_idle = self.clocks_idle();
         let a = &self.actuator;
-        let saved = (a.z, a.mode, a.stops, a.digital, a.outer, a.cylinder, a.p_supply);
+        let saved = (a.z, a.mode, a.stops, a.hbridge, a.outer, a.cylinder, a.p_supply);
         // A piston through the end of the cylinder is a broken state, refused like any error.
         let result = self.advance_inner(inputs, t_start, step).and_then(|events| {
             let a = &self.actuator;
@@ -54,7 +55,7 @@ impl Physics {
             && a.p_supply.to_bits() == saved.6.to_bits();
         self.resting = (clocks_idle && result.is_ok() && unchanged).then_some(key);
         if result.is_err() {
-            (a.z, a.mode, a.stops, a.digital, a.outer, a.cylinder, a.p_supply) = saved;
+            (a.z, a.mode, a.stops, a.hbridge, a.outer, a.cylinder, a.p_supply) = saved;
             a.active = a.systems[a.mode.index()].with_stops(&a.params, a.stops);
         }
         result
@@ -68,26 +69,26 @@ impl Physics {
     ) -> Result<StepEvents, String> {
         let mut events = StepEvents::default();
         let Physics { actuator: a, integrator, .. } = self;
-        let inputs = Held::new(&a.params, inputs);
+        let inputs = HeldInputs::new(&a.params, inputs);
         a.p_supply = inputs.p_supply;
         a.follow_command(&inputs, &mut events);
         let t_end = t_start + step;
         let p = a.params;
         let time_events =
-            a.digital.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);
+            a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);
         if time_events > MAX_TIME_EVENTS_PER_STEP {
             return Err(format!(
                 "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
             ));
         }
         // Time events within a hair of the step end (rounding of t_start + step, either
-        // side) belong to it and fire at its end: no segment of a few ulp after them (7 %
-        // of the gait's segments were 1-2e-16 s long, each a full evolution).
+        // side) belong to it and fire at its end: no segment of a few ulp after them, each
+        // a full evolution for nothing.
         let period = 1.0 / p.loops.f_sample;
         let slack = 1e-9 * step.min(p.hbridge.period()).min(period);
         let mut t = t_start;
         loop {
-            let t_bridge = a.digital.next_event(&p.hbridge);
+            let t_bridge = a.hbridge.next_event(&p.hbridge);
             let t_loop = a.outer.next_event(&p.loops);
             let t_event = t_bridge.min(t_loop);
             let fire = t_event <= t_end + slack;
@@ -110,8 +111,8 @@ impl Physics {
                 a.outer.sample(&p.loops, inputs.reference, measured);
                 a.follow_command(&inputs, &mut events);
             } else {
-                a.digital.fire(&p.hbridge, a.z[I], a.z[IREF], p.r_total, a.z[VMAX]);
-                a.z[U] = a.digital.output(a.z[VMAX]);
+                a.hbridge.fire(&p.hbridge, a.z[I], a.z[I_CMD], p.r_total, a.z[RAIL]);
+                a.z[U] = a.hbridge.output(a.z[RAIL]);
             }
         }
         if !a.z.iter().all(|x| x.is_finite()) {
@@ -124,8 +125,8 @@ impl Physics {
 /// The span a segment is propagated over: the communication step or the outer loop's period
 /// where it is one of those up to `slack` (the rounding of the instants that bound it), else
 /// its own. Segments of the same nominal length then share their propagators bit for bit:
-/// the rounding of `k / f_sample` and of `t + step` made the gait's sample periods differ in
-/// their last bits, each difference a matrix exponential of its own.
+/// the rounding of `k / f_sample` and of `t + step` makes sample periods differ in their
+/// last bits, and each difference would need a matrix exponential of its own.
 fn nominal_span(span: f64, nominal: [f64; 2], slack: f64) -> f64 {
     nominal.into_iter().find(|n| (span - n).abs() <= slack).unwrap_or(span)
 }

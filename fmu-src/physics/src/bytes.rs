@@ -1,13 +1,13 @@
-//! Byte framing of saved states, used by both sides: the physics writes and reads its part
-//! with [`ByteReader`], the model and the FMI layer frame theirs with [`frame`] and [`unframe`]
-//! (a magic naming the format and its version, the length, and an FNV-1a 64 checksum).
+//! Byte framing of saved states: the physics writes and reads its part with [`ByteReader`];
+//! whoever embeds it frames what it saves with [`frame`] and [`unframe`] (a magic naming the
+//! format and its version, the length, and an FNV-1a 64 checksum).
 
 fn checksum(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x100000001b3))
 }
 
 /// magic | body length (u64) | body | FNV-1a 64 of body. The magic names the format
-/// and its version (the model's bytes, the FMI layer's FMU state around them).
+/// and its version (each layer of a saved state has its own).
 pub fn frame(magic: &[u8; 8], body: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(body.len() + 24);
     out.extend_from_slice(magic);

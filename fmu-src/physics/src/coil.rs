@@ -1,8 +1,8 @@
 //! Torque-motor coil: `L di/dt = u - (R + R_sense) i - K_b dx_f/dt`, driven by the driver
 //! voltage `u` (the ideal current source instead holds `i` at the command).
 
+use super::augmented_state::{Mat, I, U, VF};
 use super::driver::Mode;
-use super::state::{Mat, I, U, VF};
 use super::Coefficients;
 
 /// Writes the coil row of `z' = A z` for a driver mode.

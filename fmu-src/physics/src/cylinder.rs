@@ -8,7 +8,7 @@
 //! time over each step; the Rosenbrock integrator ([`super::rosenbrock`]) advances it.
 //!
 //! # Modelling choices
-//! * **Pressures are gauge** (relative to atmosphere); the tank is at `hydraulics.p_tank` = 0.
+//! * **Pressures are gauge** (relative to atmosphere); the tank is at `p_tank` = 0.
 //! * **Valve ports** (critically centred, no lap, no leakage, [`super::metering_ports`]): for `x_s >= 0`
 //!   `Q_A = K3 x_s rsqrt(p_S - p_A)/sqrt(dp_r/2)` and `Q_B = K3 x_s rsqrt(p_B - p_T)/sqrt(dp_r/2)`,
 //!   mirrored for `x_s < 0`. `rsqrt` is a signed square root, replaced below `dp_laminar` by
@@ -16,7 +16,7 @@
 //!   at zero instead of infinite), so the Jacobian stays finite at a closed or balanced port.
 //!   Reverse flow (load pressure above supply) follows the same law with the sign reversed.
 //! * **Cavitation floor**: a chamber being emptied (net inflow < 0) has its effective bulk
-//!   modulus faded to zero over `hydraulics.dp_cavitation_band` above `hydraulics.p_cavitation`
+//!   modulus faded to zero over `dp_cavitation_band` above `p_cavitation`
 //!   (factor `u(2-u)`, `u = (p - p_cav)/band` clamped to [0, 1]: C1 where it starts, and it
 //!   vanishes at the floor). `p = p_cav` is then a barrier the exact solution cannot cross:
 //!   the chamber keeps growing at the floor (vapour/air) without the pressure falling further,
@@ -89,7 +89,7 @@ impl std::ops::Deref for CylinderParams {
 
 #[cfg(test)]
 impl Default for CylinderParams {
-    /// The start values of the variable table.
+    /// The paper's device ([`crate::Params::PAPER`]).
     fn default() -> Self {
         let p = crate::Params::PAPER;
         CylinderParams::new(&p.cylinder, &p.valve).expect("start values are valid")

@@ -2,7 +2,7 @@ use super::*;
 use crate::cylinder_jacobian::linearise;
 use crate::cylinder_terms::{friction, port_flows};
 use crate::rosenbrock::tests::simulate;
-use crate::rosenbrock::{IntegratorMemory, STATE_SCALE};
+use crate::rosenbrock::{RosenbrockMemory, STATE_SCALE};
 
 const P_RATED: f64 = 6.8948e6;
 /// Spool opening for the rated 10 mA flow (2.5268e-4 m3/s, K3 times the spool opening).
@@ -62,11 +62,11 @@ fn equilibrium_start_has_zero_derivatives_and_stays_put() {
         assert_eq!((d[0], d[1], d[2]), (0.0, 0.0, 0.0));
         assert!(d[3].abs() * p.mass < 1e-12 * stall, "{d:?}");
         let mut s = s0;
-        let mut work = IntegratorMemory::default();
+        let mut memory = RosenbrockMemory::default();
         let (stats, _) = simulate(
             &p,
             &mut s,
-            &mut work,
+            &mut memory,
             &|_| 0.0,
             (P_RATED, f_ext),
             (0.0, 0.01, 1e-4),
@@ -89,9 +89,9 @@ fn steady_velocity_equals_port_flow_over_area() {
     let p = CylinderParams::default();
     let mut s = equilibrium(&p, P_RATED, 0.0);
     s.x = -0.035;
-    let mut work = IntegratorMemory::default();
+    let mut memory = RosenbrockMemory::default();
     let x_s = 0.2e-3;
-    simulate(&p, &mut s, &mut work, &|_| x_s, (P_RATED, 0.0), (0.0, 0.04, 1e-4), |_, _| {});
+    simulate(&p, &mut s, &mut memory, &|_| x_s, (P_RATED, 0.0), (0.0, 0.04, 1e-4), |_, _| {});
     assert!(s.x < p.stroke / 2.0);
     let flows = port_flows(&p, [s.p_a, s.p_b], x_s, P_RATED);
     let (q_a, q_b) = (flows.q_a, flows.q_b);
@@ -99,7 +99,7 @@ fn steady_velocity_equals_port_flow_over_area() {
     let v_b = q_b / p.area_b();
     // Steady motion: constant pressures, no leakage, so continuity makes v = Q/A exactly
     // whatever beta or the mass; left are the decayed start transient and Rodas4's error
-    // at rtol 1e-8: 1e-9 (measured 1.9e-12).
+    // at rtol 1e-8: within 1e-9.
     assert!((s.v - v_a).abs() < 1e-9 * v_a, "v = {} vs Q_A/A_A = {v_a}", s.v);
     assert!((s.v - v_b).abs() < 1e-9 * v_b, "v = {} vs Q_B/A_B = {v_b}", s.v);
     // Independent steady state: for a speed v the port laws give p_A and p_B; bisect on
@@ -132,12 +132,12 @@ fn volume_balance_of_chamber_a() {
     let p = CylinderParams::default();
     let s0 = equilibrium(&p, P_RATED, 0.0);
     let mut s = s0;
-    let mut work = IntegratorMemory::default();
+    let mut memory = RosenbrockMemory::default();
     let x_s = |t: f64| 0.2e-3 * (1.0 - (-t / 2e-3).exp());
     let volume_a = |s: &CylinderState| p.v_dead + p.area_a() * (s.x + p.stroke / 2.0);
     let (mut inflow, mut compressed) = (0.0, 0.0);
     let mut prev = (0.0, s0, port_flows(&p, [s0.p_a, s0.p_b], x_s(0.0), P_RATED).q_a);
-    simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 0.0), (0.0, 0.03, 1e-5), |t, s| {
+    simulate(&p, &mut s, &mut memory, &x_s, (P_RATED, 0.0), (0.0, 0.03, 1e-5), |t, s| {
         let q = port_flows(&p, [s.p_a, s.p_b], x_s(t), P_RATED).q_a;
         inflow += 0.5 * (q + prev.2) * (t - prev.0);
         compressed += 0.5 * (volume_a(s) + volume_a(&prev.1)) / p.beta * (s.p_a - prev.1.p_a);
@@ -146,7 +146,7 @@ fn volume_balance_of_chamber_a() {
     let displaced = p.area_a() * (s.x - s0.x);
     let residual = inflow - displaced - compressed;
     // Exact in the equations: only the trapezoids on the 10 us samples of the 2 ms spool
-    // ramp remain: 1e-6 (measured 1.5e-7).
+    // ramp remain: within 1e-6.
     assert!(
         residual.abs() < 1e-6 * inflow.abs(),
         "in {inflow}, displaced {displaced}, compressed {compressed}"
@@ -166,10 +166,10 @@ fn end_stop_holds_the_rod_and_pressure_stays_below_supply() {
     let static_penetration = stall / p.k_endstop;
     for x_s in [0.05e-3, 0.1e-3, 0.2e-3] {
         let mut s = equilibrium(&p, P_RATED, 0.0);
-        let mut work = IntegratorMemory::default();
+        let mut memory = RosenbrockMemory::default();
         let (mut x_max, mut p_a_max, mut v_impact) = (f64::MIN, f64::MIN, 0.0);
         let t_end = 0.1 * 0.1e-3 / x_s + 0.05;
-        simulate(&p, &mut s, &mut work, &|_| x_s, (P_RATED, 0.0), (0.0, t_end, 1e-5), |_, s| {
+        simulate(&p, &mut s, &mut memory, &|_| x_s, (P_RATED, 0.0), (0.0, t_end, 1e-5), |_, s| {
             if x_max < p.stroke / 2.0 {
                 v_impact = s.v;
             }
@@ -205,13 +205,13 @@ fn overrunning_load_never_pulls_pressure_below_the_cavitation_floor() {
     let p = CylinderParams::default();
     let f_ext = -6000.0; // pulls the rod in, faster than supply can fill B
     let mut s = equilibrium(&p, P_RATED, 0.0);
-    let mut work = IntegratorMemory::default();
+    let mut memory = RosenbrockMemory::default();
     let mut p_min = f64::MAX;
     let mut time_at_floor = 0.0;
     let (stats, _) = simulate(
         &p,
         &mut s,
-        &mut work,
+        &mut memory,
         &|_| -0.5e-3,
         (P_RATED, f_ext),
         (0.0, 0.05, 1e-4),
@@ -237,19 +237,27 @@ fn jacobian_eigenvalues() {
     let p = CylinderParams::default();
     let rest = equilibrium(&p, P_RATED, 0.0);
     let mut moving = rest;
-    let mut work = IntegratorMemory::default();
+    let mut memory = RosenbrockMemory::default();
     simulate(
         &p,
         &mut moving,
-        &mut work,
+        &mut memory,
         &|_| X_S_RATED,
         (P_RATED, 0.0),
         (0.0, 0.02, 1e-4),
         |_, _| {},
     );
     let mut at_stop = rest;
-    let mut work = IntegratorMemory::default();
-    simulate(&p, &mut at_stop, &mut work, &|_| 0.2e-3, (P_RATED, 0.0), (0.0, 0.1, 1e-4), |_, _| {});
+    let mut memory = RosenbrockMemory::default();
+    simulate(
+        &p,
+        &mut at_stop,
+        &mut memory,
+        &|_| 0.2e-3,
+        (P_RATED, 0.0),
+        (0.0, 0.1, 1e-4),
+        |_, _| {},
+    );
     let cases = [
         ("at rest, x_s = 0", rest, 0.0),
         ("at rest, x_s = 1 um", rest, 1e-6),

@@ -15,13 +15,13 @@ const REST_HORIZON: f64 = 1.0;
 #[derive(Clone, Copy)]
 pub(crate) struct DrivenCylinder {
     pub(crate) state: CylinderState,
-    pub(crate) memory: IntegratorMemory,
-    rest: Option<[u64; 3]>,
+    pub(crate) memory: RosenbrockMemory,
+    resting_at: Option<[u64; 3]>,
 }
 
 impl DrivenCylinder {
-    pub(crate) fn new(state: CylinderState, memory: IntegratorMemory) -> Self {
-        DrivenCylinder { state, memory, rest: None }
+    pub(crate) fn new(state: CylinderState, memory: RosenbrockMemory) -> Self {
+        DrivenCylinder { state, memory, resting_at: None }
     }
 
     /// Advances the cylinder over a piece of `h` seconds in which the valve (driven by
@@ -34,22 +34,22 @@ impl DrivenCylinder {
         params: &CylinderParams,
         work: &mut Work,
         (z0, z1, h): (&Vector, &Vector, f64),
-        inputs: &Held,
+        inputs: &HeldInputs,
     ) -> Result<(), String> {
         let spool_still = (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9);
         if spool_still {
             let key = [z0[XS].to_bits(), inputs.p_supply.to_bits(), inputs.f_ext.to_bits()];
-            if self.rest == Some(key) {
+            if self.resting_at == Some(key) {
                 return Ok(());
             }
             // At rest means an equilibrium, whatever the piece length: no state drifting
             // ([`settled`]). dx/dt is v: a moving piston needs no model evaluation to tell.
             if settled(self.state.v, cylinder::X) && self.steady(params, z0[XS], inputs) {
-                self.rest = Some(key);
+                self.resting_at = Some(key);
                 return Ok(());
             }
         }
-        self.rest = None;
+        self.resting_at = None;
         // A steady piston that is not at rest is moving: it may glide.
         if spool_still
             && !settled(self.state.v, cylinder::X)
@@ -98,7 +98,7 @@ impl DrivenCylinder {
     /// Both pressures and the speed settled behind a spool held at `x_s` (the rates of
     /// [`cylinder::derivatives`] but the position's). The force balance first: while the
     /// piston accelerates, no flow needs evaluating.
-    fn steady(&self, params: &CylinderParams, x_s: f64, inputs: &Held) -> bool {
+    fn steady(&self, params: &CylinderParams, x_s: f64, inputs: &HeldInputs) -> bool {
         let state = &self.state;
         settled(net_force(params, state, inputs.f_ext)[0] / params.mass, cylinder::V) && {
             let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.f_ext);
@@ -111,7 +111,7 @@ impl DrivenCylinder {
     /// pressure rates, which are settled). Its motion over `h` is then `x += v h` and nothing
     /// else changes: one model evaluation instead of a Rosenbrock step (a constant command
     /// drives the piston so across most of its stroke).
-    fn glide(&mut self, params: &CylinderParams, x_s: f64, inputs: &Held, h: f64) -> bool {
+    fn glide(&mut self, params: &CylinderParams, x_s: f64, inputs: &HeldInputs, h: f64) -> bool {
         let half = 0.5 * params.stroke;
         let x_end = self.state.x + self.state.v * h;
         if !(self.state.x.abs() < half && x_end.abs() < half && self.steady(params, x_s, inputs)) {

@@ -8,9 +8,9 @@
 //! these situations is a *mode* with linear dynamics; the mode ends where one of its linear
 //! guards turns positive.
 
-use super::hbridge::Digital;
+use super::augmented_state::{dot, unit, Mat, Vector, I, I_CMD, ONE, RAIL, U, UI};
+use super::hbridge::HBridgeState;
 use super::params::DriverKind;
-use super::state::{dot, unit, Mat, Vector, I, IREF, ONE, U, UI, VMAX};
 use super::{Coefficients, StepEvents};
 
 /// Driver modes. The PI drivers move between the last seven.
@@ -64,7 +64,7 @@ pub(crate) fn rail(c: &Coefficients, v_supply: f64) -> f64 {
 /// Row vector of u_lin = Kp (i_ref - i) + ui.
 fn u_lin_row(c: &Coefficients) -> Vector {
     let mut r = Vector::zeros();
-    r[IREF] = c.kp;
+    r[I_CMD] = c.kp;
     r[I] = -c.kp;
     r[UI] = 1.0;
     r
@@ -72,7 +72,7 @@ fn u_lin_row(c: &Coefficients) -> Vector {
 
 /// Row vector of the current error i_ref - i.
 fn error_row() -> Vector {
-    unit(IREF) - unit(I)
+    unit(I_CMD) - unit(I)
 }
 
 /// Writes the driver rows of `z' = A z` (after the coil and valve rows: the linear mode's
@@ -100,7 +100,7 @@ pub(crate) fn driver_rows(c: &Coefficients, mode: Mode, a: &mut Mat) {
 /// passed, e.g. the + rail while slewing down from above it after a supply drop).
 pub(crate) fn mode_guards(c: &Coefficients, mode: Mode, a: &Mat) -> Vec<Vector> {
     let u = unit(U);
-    let vmax = unit(VMAX);
+    let vmax = unit(RAIL);
     let u_lin = u_lin_row(c);
     let e = error_row();
     let slew = c.slew_rate * unit(ONE);
@@ -133,8 +133,8 @@ pub(crate) fn consistent_mode<'a>(
         DriverKind::HBridge => return Mode::Switched,
         DriverKind::OpampPi | DriverKind::Industrial => {}
     }
-    let vmax = z[VMAX];
-    let e = z[IREF] - z[I];
+    let vmax = z[RAIL];
+    let e = z[I_CMD] - z[I];
     let u_lin = dot(&u_lin_row(c), z);
     let target = u_lin.clamp(-vmax, vmax);
     let tol = 1e-9 * (1.0 + vmax);
@@ -174,29 +174,29 @@ pub(crate) fn consistent_mode<'a>(
 /// modes. An estimate: the law moves with the coil current meanwhile.
 pub(crate) fn slew_time(c: &Coefficients, mode: Mode, z: &Vector) -> Option<f64> {
     matches!(mode, Mode::SlewUp | Mode::SlewDown).then(|| {
-        let target = dot(&u_lin_row(c), z).clamp(-z[VMAX], z[VMAX]);
+        let target = dot(&u_lin_row(c), z).clamp(-z[RAIL], z[RAIL]);
         (target - z[U]).abs() / c.slew_rate
     })
 }
 
 /// Puts the algebraic part of the state on the mode's manifold (after every propagation
 /// too, so held values stay exact rather than within rounding of exp()).
-pub(crate) fn project_onto(c: &Coefficients, digital: &Digital, z: &mut Vector, mode: Mode) {
+pub(crate) fn project_onto(c: &Coefficients, hbridge: &HBridgeState, z: &mut Vector, mode: Mode) {
     match mode {
-        Mode::Ideal => z[I] = z[IREF],
-        Mode::Voltage => z[U] = (c.r_total * z[IREF]).clamp(-z[VMAX], z[VMAX]),
-        Mode::Switched => z[U] = digital.output(z[VMAX]),
+        Mode::Ideal => z[I] = z[I_CMD],
+        Mode::Voltage => z[U] = (c.r_total * z[I_CMD]).clamp(-z[RAIL], z[RAIL]),
+        Mode::Switched => z[U] = hbridge.output(z[RAIL]),
         Mode::Linear => z[U] = dot(&u_lin_row(c), z),
-        Mode::HighFrozen | Mode::HighIntegrating => z[U] = z[VMAX],
-        Mode::LowFrozen | Mode::LowIntegrating => z[U] = -z[VMAX],
+        Mode::HighFrozen | Mode::HighIntegrating => z[U] = z[RAIL],
+        Mode::LowFrozen | Mode::LowIntegrating => z[U] = -z[RAIL],
         Mode::SlewUp | Mode::SlewDown => {}
     }
 }
 
 /// Applies the inputs held over the coming step: the algebraic drivers follow them at once.
 pub(crate) fn apply_inputs(c: &Coefficients, z: &mut Vector, i_ref: f64, rail: f64) {
-    z[IREF] = i_ref;
-    z[VMAX] = rail;
+    z[I_CMD] = i_ref;
+    z[RAIL] = rail;
     match c.driver {
         // The ideal source's voltage is what holds the current (its L di/dt impulse aside).
         DriverKind::IdealCurrent => z[U] = c.r_total * i_ref,
@@ -208,10 +208,10 @@ pub(crate) fn apply_inputs(c: &Coefficients, z: &mut Vector, i_ref: f64, rail: f
 }
 
 /// The driver output is at a supply rail.
-pub(crate) fn saturated(c: &Coefficients, mode: Mode, digital: &Digital, z: &Vector) -> bool {
+pub(crate) fn saturated(c: &Coefficients, mode: Mode, hbridge: &HBridgeState, z: &Vector) -> bool {
     match mode {
-        Mode::Voltage => (c.r_total * z[IREF]).abs() > z[VMAX],
-        Mode::Switched => digital.saturated(z[VMAX]),
+        Mode::Voltage => (c.r_total * z[I_CMD]).abs() > z[RAIL],
+        Mode::Switched => hbridge.saturated(z[RAIL]),
         m => m.at_rail(),
     }
 }
@@ -234,7 +234,7 @@ mod tests {
     fn rail_guards_of_the_linear_mode_bound_the_output() {
         let c = Coefficients::new(&crate::Params::PAPER).unwrap();
         let mut z = Vector::zeros();
-        z[VMAX] = 72.0;
+        z[RAIL] = 72.0;
         z[ONE] = 1.0;
         let guards = mode_guards(&c, Mode::Linear, &Mat::zeros());
         z[U] = 71.0;

@@ -1,4 +1,4 @@
-//! H-bridge driver (`driver` = 4): bipolar, centre-aligned PWM at `hbridge.f_pwm` switches
+//! H-bridge driver ([`DriverKind::HBridge`](super::DriverKind::HBridge)): bipolar, centre-aligned PWM at `hbridge.f_pwm` switches
 //! the coil between +V_supply and -V_supply; a digital PI current loop sampled at
 //! `hbridge.f_sample` sets the duty cycle. The command computed at one sample takes effect
 //! at the next (one-sample computation delay) and is latched at the start of a PWM period.
@@ -6,7 +6,7 @@
 //! Everything here happens at *time events* on an absolute clock (sample k at k/f_sample,
 //! period k at k/f_pwm), so the switching instants are exact and the same at any
 //! communication step. Between them the bridge voltage is constant and the continuous
-//! part is linear (see [`super::exact_integrator`]).
+//! part is linear (see [`super::mode_systems`]).
 
 use super::params::HBridgeParams;
 use crate::bytes::ByteReader;
@@ -27,7 +27,7 @@ impl HBridgeParams {
 
 /// Discrete state of the digital loop and the PWM.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub(crate) struct Digital {
+pub(crate) struct HBridgeState {
     active: bool,
     /// PI integrator (V).
     integral: f64,
@@ -45,9 +45,9 @@ pub(crate) struct Digital {
     high: bool,
 }
 
-impl Digital {
+impl HBridgeState {
     /// Holding `u` on average (the equilibrium voltage) at `start_time`. (Without an
-    /// H-bridge the digital state is `Digital::default()`, inactive.)
+    /// H-bridge the digital state is `HBridgeState::default()`, inactive.)
     pub(crate) fn at_equilibrium(
         p: &HBridgeParams,
         u: f64,
@@ -56,14 +56,14 @@ impl Digital {
         start_time: f64,
     ) -> Self {
         let first_period = (start_time * p.f_pwm + 1e-9).floor() as i64;
-        let mut d = Digital {
+        let mut d = HBridgeState {
             active: true,
             integral: u - if p.feedforward { feedforward_u } else { 0.0 },
             pending: u,
             applied: u,
             next_sample: (start_time * p.f_sample - 1e-9).ceil() as i64,
             next_period: first_period,
-            ..Digital::default()
+            ..HBridgeState::default()
         };
         // Enter the period under way, with its edges already passed applied.
         d.start_period(p, rail);
@@ -184,7 +184,7 @@ impl Digital {
         if flags > 3 || next_edge > 2 || !x.iter().all(|v| v.is_finite()) || !counters_ok {
             return Err("state holds an invalid H-bridge record".into());
         }
-        Ok(Digital {
+        Ok(HBridgeState {
             active: flags & 1 != 0,
             high: flags & 2 != 0,
             next_edge,

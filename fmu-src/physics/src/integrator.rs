@@ -11,7 +11,7 @@
 //!   state at the segment's start, consistent with its driver mode and valve stops (as
 //!   [`Actuator::settle`] leaves it);
 //! * the [`Segment`]: its length and whether it is a whole communication step;
-//! * the inputs held over it ([`Held`]: current command input, rail, supply, load, the
+//! * the inputs held over it ([`HeldInputs`]: current command input, rail, supply, load, the
 //!   outer loop's reference) and the step's [`StepEvents`].
 //!
 //! On `Ok` it must leave the actuator at the segment's end:
@@ -25,16 +25,16 @@
 //!
 //! It must not touch the digital loops, whose time events are the caller's, nor allocate.
 //! Its results may depend on the state, the inputs and the parameters only, never on what
-//! its caches hold, so that a restored state continues bit for bit. On `Err` (a message for
-//! the importer) it may leave the actuator anywhere: the caller restores the step's start.
+//! its caches hold, so that a restored state continues bit for bit. On `Err` (a message
+//! saying why) it may leave the actuator anywhere: the caller restores the step's start.
 //!
 //! Adding an integrator: a module with a type that implements [`Integrator`], a variant of
 //! [`SolverMethod`] and of [`ChosenIntegrator`] for it, and its arm in the matches below;
 //! the others stay as they are.
 
 use super::actuator::Actuator;
-use super::exact_evolution::ExactIntegrator;
-use super::{Held, SolverMethod, StepEvents, Work};
+use super::exact_integrator::ExactIntegrator;
+use super::{HeldInputs, SolverMethod, StepEvents, Work};
 
 /// A stretch of a communication step without time events.
 #[derive(Clone, Copy, Debug)]
@@ -54,7 +54,7 @@ pub(crate) trait Integrator {
         &mut self,
         actuator: &mut Actuator,
         segment: Segment,
-        inputs: &Held,
+        inputs: &HeldInputs,
         events: &mut StepEvents,
     ) -> Result<(), String>;
 
@@ -107,7 +107,7 @@ impl Integrator for ChosenIntegrator {
         &mut self,
         actuator: &mut Actuator,
         segment: Segment,
-        inputs: &Held,
+        inputs: &HeldInputs,
         events: &mut StepEvents,
     ) -> Result<(), String> {
         match self {

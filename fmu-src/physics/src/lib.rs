@@ -1,19 +1,20 @@
 //! The physics of the actuator: coil driver, torque-motor coil, Moog 30 two-stage valve,
 //! cylinder and load, and the outer flow/position loops. [`Physics`] ties the components
 //! together and advances them; it sees only the typed [`Params`], [`Inputs`] and
-//! [`Outputs`] (no value references, no variable names).
+//! [`Outputs`].
 //!
 //! [`Physics`] holds the actuator (`actuator`: coefficients, mode systems, state) and the
 //! integrator that [`Params::solver_method`] chose (`integrator`: the seam). It cuts each
 //! step at the time events of the digital loops (`advance`) and has the integrator evolve
-//! the continuous part between them. The exact integrator (`exact_evolution`): driver,
-//! coil and valve form a piecewise-linear system, integrated exactly (`exact_integrator`);
+//! the continuous part between them. The exact integrator (`exact_integrator`): driver,
+//! coil and valve form a piecewise-linear system, integrated exactly (`mode_systems`);
 //! the cylinder is nonlinear and stiff, integrated by a Rosenbrock method (`rosenbrock`)
 //! along the exact spool path. No FFI, no `unsafe`.
 
 mod actuator;
 mod advance;
 mod augmented_exp;
+mod augmented_state;
 pub mod bytes;
 mod coil;
 mod cylinder;
@@ -21,12 +22,12 @@ mod cylinder_jacobian;
 mod cylinder_terms;
 mod driven_cylinder;
 mod driver;
-mod exact_evolution;
 mod exact_integrator;
 mod hbridge;
 mod integrator;
 mod lu4;
 mod metering_ports;
+mod mode_systems;
 mod outer_loop;
 mod params;
 mod retune;
@@ -35,7 +36,6 @@ pub mod rhs;
 mod root_finding;
 mod rosenbrock;
 mod slew_end;
-mod state;
 mod state_bytes;
 mod valve;
 
@@ -46,17 +46,15 @@ pub use params::{
 };
 
 use actuator::Actuator;
+use augmented_state::{Mat, Vector, I, I_CMD, ONE, RAIL, U, UI, XF, XS};
 use cylinder::{CylinderParams, CylinderState};
 use driven_cylinder::DrivenCylinder;
 use driver::{Mode, MODES};
-use exact_integrator::{
-    locate_event, may_cross, GuardsAt, ModeSystem, Propagator, PropagatorCache,
-};
-use hbridge::Digital;
+use hbridge::HBridgeState;
 use integrator::{ChosenIntegrator, Integrator};
+use mode_systems::{locate_event, may_cross, GuardsAt, ModeSystem, Propagator, PropagatorCache};
 use outer_loop::{LoopParams, OuterLoop};
-use rosenbrock::IntegratorMemory;
-use state::{Mat, Vector, I, IREF, ONE, U, UI, VMAX, XF, XS};
+use rosenbrock::RosenbrockMemory;
 use valve::SpoolPath;
 
 /// The parameters in the form the equations use (derived from [`Params`] once).
@@ -220,7 +218,7 @@ type RestKey = [u64; 7];
 
 /// Inputs held over one step, as the equations use them.
 #[derive(Clone, Copy)]
-struct Held {
+struct HeldInputs {
     i_ref: f64,
     rail: f64,
     p_supply: f64,
@@ -229,14 +227,14 @@ struct Held {
     reference: f64,
 }
 
-impl Held {
-    fn new(c: &Coefficients, inputs: &Inputs) -> Held {
+impl HeldInputs {
+    fn new(c: &Coefficients, inputs: &Inputs) -> HeldInputs {
         let reference = match c.loops.mode {
             ControlMode::Flow => inputs.q_ref,
             ControlMode::Position => inputs.x_ref,
             ControlMode::Current => 0.0,
         };
-        Held {
+        HeldInputs {
             i_ref: inputs.i_ref,
             rail: driver::rail(c, inputs.v_supply),
             p_supply: inputs.p_supply,
@@ -257,12 +255,11 @@ impl Physics {
 
     /// Builds ahead the propagators that a first step of `step` seconds with these inputs
     /// needs, and the whole segments' that the steps after a command change use, so that the
-    /// first doSteps cost what the others do (a hardware-in-the-loop run's slowest step was
-    /// its first; the gait's second built the loop period's). Only the integrator's caches
-    /// change: a probe takes the step and hands what it built back; a probe that fails
-    /// leaves nothing.
+    /// first steps cost what the others do (a real-time host budgets every step alike). Only
+    /// the integrator's caches change: a probe takes the step and hands what it built back;
+    /// a probe that fails leaves nothing.
     pub fn prepare_first_step(&mut self, inputs: &Inputs, t_start: f64, step: f64) {
-        // On the heap: two instances' worth of stack is more than some importers' threads have.
+        // On the heap: two instances' worth of stack is more than some host threads have.
         let mut probe = Box::new(self.clone());
         if probe.advance(inputs, t_start, step).is_ok() {
             let Physics { actuator, integrator, .. } = &mut *probe;
@@ -314,7 +311,7 @@ impl Physics {
 mod tests {
     use super::*;
 
-    /// `state::rate` and `state::propagate` compute only the evolving rows: no mode may give
+    /// `augmented_state::rate` and `augmented_state::propagate` compute only the evolving rows: no mode may give
     /// the held constants dynamics, and over a step they must come out as they went in.
     #[test]
     fn no_mode_moves_the_held_constants() {
@@ -322,15 +319,21 @@ mod tests {
         let z = Vector::from_fn(|k, _| 0.3 + k as f64);
         for mode in MODES {
             let a = dynamics(&c, mode);
-            for row in state::EVOLVING..state::N {
+            for row in augmented_state::EVOLVING..augmented_state::N {
                 assert!(a.row(row).iter().all(|&x| x == 0.0), "{mode:?} moves constant {row}");
             }
             let full = a * z;
-            assert!((state::rate(&a, &z) - full).norm() <= 1e-12 * full.norm(), "{mode:?}");
+            assert!(
+                (augmented_state::rate(&a, &z) - full).norm() <= 1e-12 * full.norm(),
+                "{mode:?}"
+            );
             let p = (a * 1e-4).exp();
-            let stepped = state::propagate(&p, &z);
+            let stepped = augmented_state::propagate(&p, &z);
             assert!((stepped - p * z).norm() <= 1e-12 * z.norm(), "{mode:?}");
-            assert_eq!(stepped.rows(state::EVOLVING, 3), z.rows(state::EVOLVING, 3));
+            assert_eq!(
+                stepped.rows(augmented_state::EVOLVING, 3),
+                z.rows(augmented_state::EVOLVING, 3)
+            );
         }
     }
 
@@ -381,11 +384,11 @@ mod tests {
         assert_eq!(physics.work().exponentials, after_warm_up, "exponentials after the warm-up");
     }
 
-    /// A position loop started at rest whose reference then jumps (the gait's first sample:
+    /// A position loop started at rest whose reference then jumps (a gait's first sample,
     /// 1.44 mm) rides the rail and comes off it inside its first sample period: one-off spans,
     /// taken by Taylor series. The period's whole-segment propagator, which the slews of the
-    /// samples after it use, was built with the first step's. So neither of the first two
-    /// steps builds an exponential (two and one before).
+    /// samples after it use, is built with the first step's. So neither of the first two
+    /// steps builds an exponential.
     #[test]
     fn a_position_loop_builds_no_exponential_in_its_first_steps() {
         let mut p = Params::PAPER;
@@ -407,18 +410,17 @@ mod tests {
         // The loop drives the coil toward its command, and the spool opens toward x_ref > 0.
         assert!(physics.actuator.z[I] > 1e-3, "i_coil {} A", physics.actuator.z[I]);
         assert!(
-            physics.actuator.z[state::XS] > 0.5e-6,
+            physics.actuator.z[augmented_state::XS] > 0.5e-6,
             "x_spool {} m",
-            physics.actuator.z[state::XS]
+            physics.actuator.z[augmented_state::XS]
         );
     }
 
     /// A 100 Hz current sine at 1e-4 s steps: each step's command change ends its slew
     /// microseconds in, and the linear mode's output then rises towards its new value, fast
     /// enough that its slope alone predicts the rail within the step. Its curvature says it
-    /// bends away: the step goes the usual way, no event search for it (without the
-    /// curvature most steps had one, a sampled search that found nothing: 43 % of the
-    /// workload's cost).
+    /// bends away: the step goes the usual way, no event search for it (the slope alone
+    /// would have most steps search a window that holds no event).
     #[test]
     fn a_guard_bending_away_from_its_threshold_is_not_searched() {
         let p = Params::PAPER;
@@ -443,11 +445,11 @@ mod tests {
     fn counts_round_up_like_ceil() {
         let cases = [0.0, -0.0, 0.3, 1.0, 1.0 + f64::EPSILON, 6.5, 2f64.powi(60), 1e30];
         for x in cases {
-            assert_eq!(state::ceil_count(x), x.ceil() as usize, "{x}");
+            assert_eq!(augmented_state::ceil_count(x), x.ceil() as usize, "{x}");
         }
-        assert_eq!(state::ceil_count(f64::INFINITY), usize::MAX);
-        assert_eq!(state::ceil_count(f64::NAN), 0);
-        assert_eq!(state::ceil_count(-3.5), 0);
+        assert_eq!(augmented_state::ceil_count(f64::INFINITY), usize::MAX);
+        assert_eq!(augmented_state::ceil_count(f64::NAN), 0);
+        assert_eq!(augmented_state::ceil_count(-3.5), 0);
     }
 
     /// Preparing the first step computes its propagators ahead (that step then computes no

@@ -9,8 +9,8 @@
 //! reverses the flow, turned laminar below `dp_laminar` so that the slopes stay finite at a
 //! closed or balanced port.
 
-/// The valve's metering-port data (the values of `valve.K3`, `valve.dp_rated` and
-/// `valve.dp_laminar`).
+/// The valve's metering-port data (the values of [`ValveParams`](crate::ValveParams)'s `k3`,
+/// `dp_rated` and `dp_laminar`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct MeteringPorts {
     /// Spool/bushing flow gain K3 (m2/s).

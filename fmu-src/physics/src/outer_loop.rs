@@ -1,6 +1,6 @@
-//! Outer loops (`control_mode` 1 flow, 2 position): a digital PID sampled at
-//! `loop.f_sample` on an absolute clock, producing the coil current command, held between
-//! samples and limited to +-`loop.i_max`. The flow loop adds the feed-forward
+//! Outer loops ([`ControlMode::Flow`], [`ControlMode::Position`]): a digital PID sampled at
+//! `f_sample` on an absolute clock, producing the coil current command, held between
+//! samples and limited to +-`i_max` ([`OuterLoopParams`]). The flow loop adds the feed-forward
 //! Q_ref / (K3*K1/Kw), the valve's static flow gain.
 
 use super::params::{ControlMode, OuterLoopParams};

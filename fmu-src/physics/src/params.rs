@@ -1,5 +1,5 @@
-//! The typed boundary of the physics: parameters, inputs and outputs in SI, one field per
-//! variable of the table (the [`crate::model::Model`] fills and reads them).
+//! The typed boundary of the physics: parameters, inputs and outputs in SI, each a plain
+//! field (whoever embeds the physics fills and reads them).
 
 /// The Moog 30's rated coil current (A): the valve's flow gain is specified up to it, the
 /// outer loops limit their command to it by default, and a current command beyond it is
@@ -27,7 +27,7 @@ impl DriverKind {
     ];
 }
 
-/// Which command drives the coil current (`control_mode`).
+/// Which command drives the coil current.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ControlMode {
     Current,
@@ -218,8 +218,8 @@ pub struct Outputs {
 
 impl Params {
     /// The device of the paper: the op-amp PI driver on the Moog 30 valve and a 16 mm
-    /// cylinder with a 5 kg load, driven by the current command (every parameter's start
-    /// value; the variable table takes its start values from here).
+    /// cylinder with a 5 kg load, driven by the current command: the values a run starts
+    /// from unless it is told otherwise.
     pub const PAPER: Params = Params {
         driver: DriverKind::OpampPi,
         control_mode: ControlMode::Current,

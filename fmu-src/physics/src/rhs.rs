@@ -1,26 +1,26 @@
 //! The whole model as one explicit right-hand side `dy = f(y, held inputs)`, built from the
-//! component functions the FMU itself integrates: the coil and valve rows of the mode
+//! component functions that [`crate::Physics`] itself integrates: the coil and valve rows of the mode
 //! matrices (`coil::coil_rows`, `valve::valve_rows`), the PI coefficients of the driver and
 //! `cylinder::derivatives`. It is there for an independent integration of the same
 //! equations by a general ODE solver (the benchmark's CVODE peer, reference runs), so
 //! that the model is transcribed once.
 //!
-//! Where the FMU switches exactly between driver modes, a smooth ODE cannot: here the PI
+//! Where the exact integrator switches between driver modes, a smooth ODE cannot: here the PI
 //! driver's output is a state that tracks its clamped target `clamp(Kp e + ui, +-rail)` at
 //! the rate [`TRACKING`] (10 ps behind), limited to +-slew rate, and the integrator stops
 //! while the output rests on a rail with the error pushing further (anti-windup). The
 //! valve travel stops are not represented ([`WholeModel::new`] refuses them), nor the
 //! ideal current source (an algebraic current).
 //!
-//! The digital parts (H-bridge PWM and PI, outer PID) are the FMU's own, behind
+//! The digital parts (H-bridge PWM and PI, outer PID) are the physics' own, behind
 //! [`Sampled`]: they change the held inputs at their time events.
 
+use super::augmented_state::{self, Mat, Vector};
 use super::cylinder::{self, CylinderState};
 use super::driver::Mode;
-use super::hbridge::Digital;
+use super::hbridge::HBridgeState;
 use super::outer_loop::OuterLoop;
 use super::rosenbrock::STATE_SCALE;
-use super::state::{self, Mat, Vector};
 use super::{coil, valve, Coefficients, ControlMode, DriverKind, Outputs, Params};
 
 /// State size: coil current, PI integrator output, driver output, flapper position and
@@ -38,14 +38,14 @@ pub const X: usize = 8;
 pub const V: usize = 9;
 
 /// Rate at which the PI driver's output follows its clamped target (1/s). Its lag is a
-/// model error no solver tolerance removes: at 1e8 1/s (10 ns) it kept CVODE 2-4e-5 of a
-/// flow's range from the FMU at any tolerance; at 1e11 that floor is below 5e-7 and CVODE
-/// takes no more steps. At 1e12 its Newton iteration fails at rtol 1e-8 on the sine waves.
+/// model error no solver tolerance removes, so it is fast enough to put that error below
+/// the tolerances the peer runs at, and no faster: a stiffer tracking makes a solver's
+/// Newton iteration fail at tight tolerances.
 pub const TRACKING: f64 = 1e11;
 
 /// Inputs and discrete outputs held between time events.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Held {
+pub struct RhsInputs {
     /// Coil current command (i_ref, or the outer loop's output) (A).
     pub i_cmd: f64,
     /// Driver rail V_supply - V_drop (V).
@@ -60,7 +60,7 @@ pub struct Held {
 #[derive(Clone, Copy, Debug)]
 pub struct WholeModel {
     c: Coefficients,
-    /// Coil and valve rows of `z' = A z` (augmented state of [`state`]); driver rows zero.
+    /// Coil and valve rows of `z' = A z` (augmented state of [`augmented_state`]); driver rows zero.
     coil_valve: Mat,
 }
 
@@ -99,7 +99,7 @@ impl WholeModel {
     }
 
     /// The driver's output voltage at `y`.
-    pub fn driver_voltage(&self, held: &Held, y: &[f64; NY]) -> f64 {
+    pub fn driver_voltage(&self, held: &RhsInputs, y: &[f64; NY]) -> f64 {
         match self.c.driver {
             DriverKind::HBridge => held.u_bridge,
             DriverKind::Voltage => (self.c.r_total * held.i_cmd).clamp(-held.rail, held.rail),
@@ -108,24 +108,24 @@ impl WholeModel {
     }
 
     /// `dy = f(y)` for the held inputs.
-    pub fn rhs(&self, held: &Held, y: &[f64; NY], dy: &mut [f64; NY]) {
+    pub fn rhs(&self, held: &RhsInputs, y: &[f64; NY], dy: &mut [f64; NY]) {
         let c = &self.c;
         let u = self.driver_voltage(held, y);
         let mut z = Vector::zeros();
-        z[state::I] = y[I];
-        z[state::UI] = y[UI];
-        z[state::U] = u;
-        z[state::XF] = y[XF];
-        z[state::VF] = y[VF];
-        z[state::XS] = y[XS];
-        z[state::IREF] = held.i_cmd;
-        z[state::VMAX] = held.rail;
-        z[state::ONE] = 1.0;
+        z[augmented_state::I] = y[I];
+        z[augmented_state::UI] = y[UI];
+        z[augmented_state::U] = u;
+        z[augmented_state::XF] = y[XF];
+        z[augmented_state::VF] = y[VF];
+        z[augmented_state::XS] = y[XS];
+        z[augmented_state::I_CMD] = held.i_cmd;
+        z[augmented_state::RAIL] = held.rail;
+        z[augmented_state::ONE] = 1.0;
         let dz = self.coil_valve * z;
-        dy[I] = dz[state::I];
-        dy[XF] = dz[state::XF];
-        dy[VF] = dz[state::VF];
-        dy[XS] = dz[state::XS];
+        dy[I] = dz[augmented_state::I];
+        dy[XF] = dz[augmented_state::XF];
+        dy[VF] = dz[augmented_state::VF];
+        dy[XS] = dz[augmented_state::XS];
         if matches!(c.driver, DriverKind::OpampPi | DriverKind::Industrial) {
             let e = held.i_cmd - y[I];
             let u_lin = c.kp * e + y[UI];
@@ -145,7 +145,7 @@ impl WholeModel {
     }
 
     /// Absolute error scales of the states (a solver's atol is `rtol` times these): the
-    /// cylinder's are the FMU's own Rosenbrock weights; the valve's follow 10 mA of current.
+    /// cylinder's are the physics' own Rosenbrock weights; the valve's follow 10 mA of current.
     pub fn error_scales(&self) -> [f64; NY] {
         let c = &self.c;
         let i = 1e-2;
@@ -155,7 +155,7 @@ impl WholeModel {
     }
 
     /// The outputs at `y`.
-    pub fn outputs(&self, held: &Held, y: &[f64; NY]) -> Outputs {
+    pub fn outputs(&self, held: &RhsInputs, y: &[f64; NY]) -> Outputs {
         let c = &self.c;
         let cyl = CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] };
         let u = self.driver_voltage(held, y);
@@ -173,10 +173,10 @@ impl WholeModel {
     }
 }
 
-/// The digital parts (H-bridge PWM and digital PI, outer flow/position PID): the FMU's own.
+/// The digital parts (H-bridge PWM and digital PI, outer flow/position PID): the physics' own.
 #[derive(Clone, Copy, Debug)]
 pub struct Sampled {
-    digital: Digital,
+    hbridge: HBridgeState,
     outer: OuterLoop,
 }
 
@@ -191,19 +191,19 @@ impl Sampled {
         start: f64,
     ) -> Self {
         let c = &model.c;
-        let digital = if c.driver == DriverKind::HBridge {
+        let hbridge = if c.driver == DriverKind::HBridge {
             let u = (c.r_total * i_coil).clamp(-rail, rail);
-            Digital::at_equilibrium(&c.hbridge, u, u, rail, start)
+            HBridgeState::at_equilibrium(&c.hbridge, u, u, rail, start)
         } else {
-            Digital::default()
+            HBridgeState::default()
         };
-        Sampled { digital, outer: OuterLoop::at_start(&c.loops, reference, start) }
+        Sampled { hbridge, outer: OuterLoop::at_start(&c.loops, reference, start) }
     }
 
     /// Time of the next sampling or switching instant (infinite without digital parts).
     pub fn next_event(&self, model: &WholeModel) -> f64 {
         let c = &model.c;
-        self.digital.next_event(&c.hbridge).min(self.outer.next_event(&c.loops))
+        self.hbridge.next_event(&c.hbridge).min(self.outer.next_event(&c.loops))
     }
 
     /// The coil current command for the input `i_ref`.
@@ -217,21 +217,22 @@ impl Sampled {
 
     /// The bridge output for `rail` (V).
     pub fn bridge_output(&self, rail: f64) -> f64 {
-        self.digital.output(rail)
+        self.hbridge.output(rail)
     }
 
-    /// Handles the next instant at state `y` (the outer loop first at equal times, as the
-    /// FMU does) and updates `held`; `reference` is Q_ref or x_ref, `i_ref` the input.
+    /// Handles the next instant at state `y` (the outer loop first at equal times, as
+    /// [`crate::Physics`] does) and updates `held`; `reference` is Q_ref or x_ref, `i_ref`
+    /// the input.
     pub fn fire(
         &mut self,
         model: &WholeModel,
         y: &[f64; NY],
         reference: f64,
         i_ref: f64,
-        held: &mut Held,
+        held: &mut RhsInputs,
     ) {
         let c = &model.c;
-        if self.outer.next_event(&c.loops) <= self.digital.next_event(&c.hbridge) {
+        if self.outer.next_event(&c.loops) <= self.hbridge.next_event(&c.hbridge) {
             let measured = match c.loops.mode {
                 ControlMode::Flow => valve::no_load_flow(c, y[XS]),
                 _ => y[X],
@@ -239,8 +240,8 @@ impl Sampled {
             self.outer.sample(&c.loops, reference, measured);
             held.i_cmd = self.command(model, i_ref);
         } else {
-            self.digital.fire(&c.hbridge, y[I], held.i_cmd, c.r_total, held.rail);
-            held.u_bridge = self.digital.output(held.rail);
+            self.hbridge.fire(&c.hbridge, y[I], held.i_cmd, c.r_total, held.rail);
+            held.u_bridge = self.hbridge.output(held.rail);
         }
     }
 }

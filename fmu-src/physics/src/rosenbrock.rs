@@ -3,7 +3,7 @@
 //! Rodas4 (Hairer & Wanner, *Solving ODEs II*, IV.7; coefficients of `rodas.f`, METH = 1):
 //! a 6-stage Rosenbrock method of order 4, stiffly accurate and L-stable, with an embedded
 //! order-3 solution for error control. Why implicit: the Jacobian's stiff modes are not rare
-//! corners but ordinary operating states (eigenvalues measured in `tests::jacobian_eigenvalues`):
+//! corners but ordinary operating states (eigenvalues computed in `tests::jacobian_eigenvalues`):
 //! at rest the friction tanh gives `-6.0e4 1/s` (`~ -Fs/(m v_smooth)`); pressed on the end stop
 //! `-1.4e5, -6.2e4, -1.6e4` (laminar port near supply, friction); a port in its laminar region
 //! `-6e4`; during an impact the contact mode `-1.07e3 +- 4.4e3i` plus `-2.7e4`; moving at rated
@@ -17,7 +17,7 @@
 //! most half the controller's size first tries Rodas3 (Sandu et al. 1997; 4 stages, 2 model
 //! evaluations after the linearisation) and keeps it only if its own embedded estimate passes
 //! the same tolerance; after a failure it sits out a few such steps (its failures come in
-//! runs, [`MAX_CHEAP_BACKOFF`]). Steps are cut to land on the end-stop contact switches (x reaching
+//! runs, [`MAX_RODAS3_BACKOFF`]). Steps are cut to land on the end-stop contact switches (x reaching
 //! `+-S/2`, the contact force crossing zero), predicted from the Taylor polynomial that the
 //! linearisation gives, instead of rejecting their way across the jump in `v'`; and on a
 //! cavitation kink (a chamber in the band turning from filling to emptying) once an attempt
@@ -111,12 +111,12 @@ const MAX_STEPS_PER_CALL: u32 = 100_000;
 /// Error weights: the error of state i is measured against `rtol * max(|y_i|, STATE_SCALE[i])`.
 pub(crate) const STATE_SCALE: [f64; N_STATES] = [1.0e6, 1.0e6, 1.0e-2, 1.0e-1];
 
-/// Numbers in [`IntegratorMemory::to_array`].
+/// Numbers in [`RosenbrockMemory::to_array`].
 pub(crate) const MEMORY_VALUES: usize = 6;
 
 /// What the integrator carries from one call to the next.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct IntegratorMemory {
+pub(crate) struct RosenbrockMemory {
     /// Relative tolerance on the scaled states.
     pub rtol: f64,
     /// Step size to try next (s); 0 = not known yet.
@@ -124,64 +124,64 @@ pub(crate) struct IntegratorMemory {
     /// Last accepted step and its error, for Gustafsson's predictive controller.
     h_accepted: f64,
     err_accepted: f64,
-    /// Steps that could try Rodas3 that will not, after it failed ([`MAX_CHEAP_BACKOFF`]),
+    /// Steps that could try Rodas3 that will not, after it failed ([`MAX_RODAS3_BACKOFF`]),
     /// and how many the last failure set.
-    cheap_skip: u32,
-    cheap_backoff: u32,
+    rodas3_skip: u32,
+    rodas3_backoff: u32,
 }
 
 /// After a Rodas3 attempt fails its error test, the next 1, 2, 4, ... (doubling while it
 /// keeps failing, back to 1 once it passes) steps that could try it go to Rodas4 at once,
-/// up to this many: its failures come in runs (93 % of the gait's failures follow a
-/// failure, 96 % of the flow loop's), and each cost an LU and two model evaluations.
-const MAX_CHEAP_BACKOFF: u32 = 64;
+/// up to this many: its failures come in runs (a step on which it fails is mostly followed
+/// by another), and each costs an LU and two model evaluations.
+const MAX_RODAS3_BACKOFF: u32 = 64;
 
-/// At the default `solver.rtol` (the instance starts at the parameter's value).
+/// At the default `Params::solver_rtol` (an instance starts at its parameter's value).
 #[cfg(test)]
-impl Default for IntegratorMemory {
+impl Default for RosenbrockMemory {
     fn default() -> Self {
-        IntegratorMemory::new(crate::Params::PAPER.solver_rtol)
+        RosenbrockMemory::new(crate::Params::PAPER.solver_rtol)
     }
 }
 
-impl IntegratorMemory {
-    pub(crate) fn new(rtol: f64) -> IntegratorMemory {
-        IntegratorMemory {
+impl RosenbrockMemory {
+    pub(crate) fn new(rtol: f64) -> RosenbrockMemory {
+        RosenbrockMemory {
             rtol,
             h_next: 0.0,
             h_accepted: 0.0,
             err_accepted: 1.0,
-            cheap_skip: 0,
-            cheap_backoff: 0,
+            rodas3_skip: 0,
+            rodas3_backoff: 0,
         }
     }
     /// Whether a step that could try Rodas3 may: not while sitting out a backoff (the turn
     /// is counted).
-    fn takes_cheap_turn(&mut self) -> bool {
-        if self.cheap_skip > 0 {
-            self.cheap_skip -= 1;
+    fn takes_rodas3_turn(&mut self) -> bool {
+        if self.rodas3_skip > 0 {
+            self.rodas3_skip -= 1;
             false
         } else {
             true
         }
     }
 
-    /// `[rtol, h_next, h_accepted, err_accepted, cheap_skip, cheap_backoff]`, for
+    /// `[rtol, h_next, h_accepted, err_accepted, rodas3_skip, rodas3_backoff]`, for
     /// serialising the instance state.
     pub(crate) fn to_array(self) -> [f64; MEMORY_VALUES] {
-        let (skip, backoff) = (self.cheap_skip as f64, self.cheap_backoff as f64);
+        let (skip, backoff) = (self.rodas3_skip as f64, self.rodas3_backoff as f64);
         [self.rtol, self.h_next, self.h_accepted, self.err_accepted, skip, backoff]
     }
-    /// Inverse of [`IntegratorMemory::to_array`]; counts out of range are clamped.
-    pub(crate) fn from_array(a: &[f64; MEMORY_VALUES]) -> IntegratorMemory {
-        let count = |x: f64| x.clamp(0.0, MAX_CHEAP_BACKOFF as f64) as u32;
-        IntegratorMemory {
+    /// Inverse of [`RosenbrockMemory::to_array`]; counts out of range are clamped.
+    pub(crate) fn from_array(a: &[f64; MEMORY_VALUES]) -> RosenbrockMemory {
+        let count = |x: f64| x.clamp(0.0, MAX_RODAS3_BACKOFF as f64) as u32;
+        RosenbrockMemory {
             rtol: a[0],
             h_next: a[1],
             h_accepted: a[2],
             err_accepted: a[3],
-            cheap_skip: count(a[4]),
-            cheap_backoff: count(a[5]),
+            rodas3_skip: count(a[4]),
+            rodas3_backoff: count(a[5]),
         }
     }
 }
@@ -198,8 +198,8 @@ pub(crate) struct Stats {
     pub factorisations: u32,
     /// Accepted steps taken with Rodas3 (included in `accepted`), and Rodas3 attempts whose
     /// error estimate failed (followed by Rodas4 on the same step; not in `rejected`).
-    pub cheap: u32,
-    pub cheap_failed: u32,
+    pub rodas3_accepted: u32,
+    pub rodas3_failed: u32,
     /// Accepted steps cut short to land on an end-stop contact switch (included in `accepted`).
     pub landings: u32,
     /// Largest amount a pressure was lifted back to the cavitation floor after a step (Pa).
@@ -219,7 +219,7 @@ pub(crate) fn advance(
     p_supply: f64,
     f_ext: f64,
     x_s: impl Fn(f64) -> f64,
-    work: &mut IntegratorMemory,
+    memory: &mut RosenbrockMemory,
 ) -> Result<Stats, String> {
     // Central difference inside [0, h], one-sided second order at its ends: O(1e-10) relative
     // error for a smooth path, which only enters through the h d_i f_t terms of the stages.
@@ -235,7 +235,7 @@ pub(crate) fn advance(
         };
         (value, rate)
     };
-    advance_with_rate(params, state, h, p_supply, f_ext, spool, work)
+    advance_with_rate(params, state, h, p_supply, f_ext, spool, memory)
 }
 
 /// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`.
@@ -247,7 +247,7 @@ pub(crate) fn advance_with_rate(
     p_supply: f64,
     f_ext: f64,
     spool: impl Fn(f64) -> (f64, f64),
-    work: &mut IntegratorMemory,
+    memory: &mut RosenbrockMemory,
 ) -> Result<Stats, String> {
     let mut stats = Stats::default();
     if h == 0.0 {
@@ -261,7 +261,7 @@ pub(crate) fn advance_with_rate(
         h,
         y: state.to_array(),
         tau: 0.0,
-        step: if work.h_next > 0.0 { work.h_next } else { INITIAL_STEP },
+        step: if memory.h_next > 0.0 { memory.h_next } else { INITIAL_STEP },
         rejected_last: false,
         rejection: None,
         landings: 0,
@@ -305,10 +305,10 @@ pub(crate) fn advance_with_rate(
         // smooth at this size: try the cheaper Rodas3 under the same tolerance first and keep
         // its result only if its own error estimate passes; else Rodas4 from the same
         // linearisation. The controller only ever learns from Rodas4 steps.
-        if last && call.step * 2.0 <= wanted && work.takes_cheap_turn() {
-            if let Some(y3) = cheap_step(&model, here, &call, work, &mut stats)? {
+        if last && call.step * 2.0 <= wanted && memory.takes_rodas3_turn() {
+            if let Some(y3) = rodas3_step(&model, here, &call, memory, &mut stats)? {
                 call.y = y3;
-                work.h_next = wanted;
+                memory.h_next = wanted;
                 break;
             }
         }
@@ -317,13 +317,13 @@ pub(crate) fn advance_with_rate(
             &model,
             here,
             (call.tau, &call.y, call.step),
-            work.rtol,
+            memory.rtol,
             &mut stats,
         )?;
         if err <= 1.0 {
             lin = None;
             let attempt = Attempt { wanted, last, landing };
-            if call.accept(params, y_new, err, attempt, work, &mut stats) {
+            if call.accept(params, y_new, err, attempt, memory, &mut stats) {
                 break;
             }
         } else {
@@ -412,7 +412,7 @@ impl Call {
         y_new: Vec4,
         err: f64,
         attempt: Attempt,
-        work: &mut IntegratorMemory,
+        memory: &mut RosenbrockMemory,
         stats: &mut Stats,
     ) -> bool {
         stats.accepted += 1;
@@ -432,20 +432,20 @@ impl Call {
         let step = self.step;
         let mut factor = (fourth_root(err) / SAFETY).clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR);
         // Gustafsson: also use the trend of the error between accepted steps.
-        if work.h_accepted > 0.0 {
+        if memory.h_accepted > 0.0 {
             let predictive =
-                (work.h_accepted / step) * fourth_root(err * err / work.err_accepted) / SAFETY;
+                (memory.h_accepted / step) * fourth_root(err * err / memory.err_accepted) / SAFETY;
             factor = factor.max(predictive.clamp(1.0 / MAX_FACTOR, 1.0 / MIN_FACTOR));
         }
-        work.h_accepted = step;
-        work.err_accepted = err.max(1e-2);
+        memory.h_accepted = step;
+        memory.err_accepted = err.max(1e-2);
         let mut next = step / factor;
         if self.rejected_last {
             next = next.min(step);
         }
         self.rejected_last = false;
         if attempt.last {
-            work.h_next = if next >= step { next.max(attempt.wanted) } else { next };
+            memory.h_next = if next >= step { next.max(attempt.wanted) } else { next };
             return true;
         }
         self.step = next.min(self.h);
@@ -473,25 +473,25 @@ impl Call {
 
 /// A Rodas3 attempt at the step from `call`'s point: its state (lifted to the cavitation
 /// floor) if its own error estimate passes, else `None` after backing off further attempts.
-fn cheap_step<F: Fn(f64) -> (f64, f64)>(
+fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
     model: &Rhs<'_, F>,
     here: &Linearisation,
     call: &Call,
-    work: &mut IntegratorMemory,
+    memory: &mut RosenbrockMemory,
     stats: &mut Stats,
 ) -> Result<Option<Vec4>, String> {
     let (mut y3, err3) =
-        rosenbrock_step(&RODAS3, model, here, (call.tau, &call.y, call.step), work.rtol, stats)?;
+        rosenbrock_step(&RODAS3, model, here, (call.tau, &call.y, call.step), memory.rtol, stats)?;
     if err3 <= 1.0 {
-        work.cheap_backoff = 0;
+        memory.rodas3_backoff = 0;
         stats.accepted += 1;
-        stats.cheap += 1;
+        stats.rodas3_accepted += 1;
         clamp_to_floor(model.params, &mut y3, stats);
         return Ok(Some(y3));
     }
-    stats.cheap_failed += 1;
-    work.cheap_backoff = (2 * work.cheap_backoff).clamp(1, MAX_CHEAP_BACKOFF);
-    work.cheap_skip = work.cheap_backoff;
+    stats.rodas3_failed += 1;
+    memory.rodas3_backoff = (2 * memory.rodas3_backoff).clamp(1, MAX_RODAS3_BACKOFF);
+    memory.rodas3_skip = memory.rodas3_backoff;
     Ok(None)
 }
 

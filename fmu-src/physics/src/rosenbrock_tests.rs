@@ -10,7 +10,7 @@ const X_S_RATED: f64 = 2.5268e-4 / 0.664515;
 pub(crate) fn simulate(
     params: &CylinderParams,
     state: &mut CylinderState,
-    work: &mut IntegratorMemory,
+    memory: &mut RosenbrockMemory,
     x_s: &dyn Fn(f64) -> f64,
     (p_supply, f_ext): (f64, f64),
     (t_start, t_end, interval): (f64, f64, f64),
@@ -22,13 +22,13 @@ pub(crate) fn simulate(
     for n in 0..calls {
         let t = t_start + n as f64 * interval;
         let s =
-            advance(params, state, interval, p_supply, f_ext, |tau| x_s(t + tau), work).unwrap();
+            advance(params, state, interval, p_supply, f_ext, |tau| x_s(t + tau), memory).unwrap();
         total.accepted += s.accepted;
         total.rejected += s.rejected;
         total.function_evaluations += s.function_evaluations;
         total.jacobian_evaluations += s.jacobian_evaluations;
-        total.cheap += s.cheap;
-        total.cheap_failed += s.cheap_failed;
+        total.rodas3_accepted += s.rodas3_accepted;
+        total.rodas3_failed += s.rodas3_failed;
         total.landings += s.landings;
         total.floor_clamp = total.floor_clamp.max(s.floor_clamp);
         most_steps = most_steps.max(s.accepted + s.rejected);
@@ -44,8 +44,8 @@ fn result_does_not_depend_on_the_call_interval() {
     let x_s = |t: f64| 0.3e-3 * (2.0 * std::f64::consts::PI * 10.0 * t).sin();
     let run = |interval: f64, rtol: f64| {
         let mut s = equilibrium(&p, P_RATED, 200.0);
-        let mut work = IntegratorMemory::new(rtol);
-        simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 200.0), (0.0, 0.06, interval), |_, _| {});
+        let mut memory = RosenbrockMemory::new(rtol);
+        simulate(&p, &mut s, &mut memory, &x_s, (P_RATED, 200.0), (0.0, 0.06, interval), |_, _| {});
         s
     };
     let reference = run(1e-3, 1e-11);
@@ -66,12 +66,12 @@ fn restored_state_and_memory_repeat_the_run_bit_for_bit() {
     let p = CylinderParams::default();
     let x_s = |t: f64| 0.2e-3 * (1.0 - (-t / 1e-3).exp());
     let mut s = equilibrium(&p, P_RATED, 100.0);
-    let mut work = IntegratorMemory::default();
-    simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 100.0), (0.0, 0.005, 1e-3), |_, _| {});
-    let (saved_state, saved_memory) = (s.to_array(), work.to_array());
-    simulate(&p, &mut s, &mut work, &x_s, (P_RATED, 100.0), (0.005, 0.01, 1e-3), |_, _| {});
+    let mut memory = RosenbrockMemory::default();
+    simulate(&p, &mut s, &mut memory, &x_s, (P_RATED, 100.0), (0.0, 0.005, 1e-3), |_, _| {});
+    let (saved_state, saved_memory) = (s.to_array(), memory.to_array());
+    simulate(&p, &mut s, &mut memory, &x_s, (P_RATED, 100.0), (0.005, 0.01, 1e-3), |_, _| {});
     let mut again = CylinderState::from_array(&saved_state);
-    let mut again_work = IntegratorMemory::from_array(&saved_memory);
+    let mut again_work = RosenbrockMemory::from_array(&saved_memory);
     simulate(
         &p,
         &mut again,
@@ -82,10 +82,10 @@ fn restored_state_and_memory_repeat_the_run_bit_for_bit() {
         |_, _| {},
     );
     assert_eq!(again, s);
-    assert_eq!(again_work, work);
+    assert_eq!(again_work, memory);
     // A refused step leaves the state alone.
     let before = s;
-    assert!(advance(&p, &mut s, f64::NAN, P_RATED, 0.0, |_| 0.0, &mut work).is_err());
+    assert!(advance(&p, &mut s, f64::NAN, P_RATED, 0.0, |_| 0.0, &mut memory).is_err());
     assert_eq!(s, before);
 }
 
@@ -96,27 +96,27 @@ fn failed_rodas3_attempts_back_off() {
     let p = CylinderParams::default();
     let x_s = |t: f64| 0.3e-3 * (2.0 * std::f64::consts::PI * 10.0 * t).sin();
     let mut s = equilibrium(&p, P_RATED, 200.0);
-    let mut work = IntegratorMemory::default();
+    let mut memory = RosenbrockMemory::default();
     let (mut failures, mut skipped) = (0, 0);
     for n in 0..5000 {
         let t = n as f64 * 2e-5;
-        let before = work;
+        let before = memory;
         let stats =
-            advance(&p, &mut s, 2e-5, P_RATED, 200.0, |tau| x_s(t + tau), &mut work).unwrap();
-        let tried = stats.cheap + stats.cheap_failed;
-        if before.cheap_skip > 0 {
+            advance(&p, &mut s, 2e-5, P_RATED, 200.0, |tau| x_s(t + tau), &mut memory).unwrap();
+        let tried = stats.rodas3_accepted + stats.rodas3_failed;
+        if before.rodas3_skip > 0 {
             assert_eq!(tried, 0, "call {n} tried Rodas3 while backing off");
-            skipped += u32::from(work.cheap_skip < before.cheap_skip);
+            skipped += u32::from(memory.rodas3_skip < before.rodas3_skip);
         }
-        if stats.cheap_failed > 0 {
+        if stats.rodas3_failed > 0 {
             failures += 1;
-            let expected = (2 * before.cheap_backoff).clamp(1, MAX_CHEAP_BACKOFF);
-            assert_eq!(work.cheap_backoff, expected, "call {n}");
+            let expected = (2 * before.rodas3_backoff).clamp(1, MAX_RODAS3_BACKOFF);
+            assert_eq!(memory.rodas3_backoff, expected, "call {n}");
             // Steps after the failure within the call (a rejection) count down already.
-            let counted_down = work.cheap_skip < expected && stats.rejected > 0;
-            assert!(work.cheap_skip == expected || counted_down, "call {n}");
-        } else if stats.cheap > 0 {
-            assert_eq!(work.cheap_backoff, 0, "call {n}: a pass resets the backoff");
+            let counted_down = memory.rodas3_skip < expected && stats.rejected > 0;
+            assert!(memory.rodas3_skip == expected || counted_down, "call {n}");
+        } else if stats.rodas3_accepted > 0 {
+            assert_eq!(memory.rodas3_backoff, 0, "call {n}: a pass resets the backoff");
         }
     }
     assert!(failures > 10 && skipped > 10, "{failures} failures, {skipped} calls skipped");
@@ -139,12 +139,12 @@ fn default_tolerance_tracks_a_tight_reference() {
     for (name, x_s, f_ext, t_end) in cases {
         let run = |rtol: f64| {
             let mut s = equilibrium(&p, P_RATED, 0.0);
-            let mut work = IntegratorMemory::new(rtol);
+            let mut memory = RosenbrockMemory::new(rtol);
             let mut trace = Vec::new();
             let (stats, most) = simulate(
                 &p,
                 &mut s,
-                &mut work,
+                &mut memory,
                 x_s,
                 (P_RATED, f_ext),
                 (0.0, t_end, 1e-4),
@@ -166,7 +166,7 @@ fn default_tolerance_tracks_a_tight_reference() {
         }
         println!(
                 "{name:38} max scaled deviation {worst:.2e}; {} steps ({} Rodas3, {} Rodas3 failed, {} rejected), {} f-evals, max {most} per call",
-                stats.accepted, stats.cheap, stats.cheap_failed, stats.rejected, stats.function_evaluations
+                stats.accepted, stats.rodas3_accepted, stats.rodas3_failed, stats.rejected, stats.function_evaluations
             );
         assert!(worst < 1e-5, "{name}: {worst}");
     }
@@ -179,11 +179,11 @@ fn default_tolerance_tracks_a_tight_reference() {
 fn contact_instants_are_stepped_onto() {
     let p = CylinderParams::default();
     let mut s = equilibrium(&p, P_RATED, 0.0);
-    let mut work = IntegratorMemory::default();
+    let mut memory = RosenbrockMemory::default();
     let (mut entries, mut landings, mut most) = (0, 0, 0);
     for n in 0..60_000 {
         let before = s.x;
-        let stats = advance(&p, &mut s, 1e-5, P_RATED, 0.0, |_| 0.2e-3, &mut work).unwrap();
+        let stats = advance(&p, &mut s, 1e-5, P_RATED, 0.0, |_| 0.2e-3, &mut memory).unwrap();
         if before <= p.stroke / 2.0 && s.x > p.stroke / 2.0 {
             entries += 1;
             landings += stats.landings;
@@ -199,11 +199,11 @@ fn contact_instants_are_stepped_onto() {
 }
 
 /// A chamber in the cavitation band that turns from filling to emptying: the bulk-modulus
-/// factor drops from 1 to `u(2-u)` there, a kink in `p'`. The state is the gait's at a
-/// velocity reversal (t = 0.138 s of the benchmark: chamber B at -0.6 bar, the spool closing
-/// towards null, the touchdown load on). The attempt that first holds the kink fails; the
-/// step after it lands on the kink: 1 rejection, where error control alone shrank the step
-/// twice (errors 1.86, 1.86: a kink, not the step size, sets them).
+/// factor drops from 1 to `u(2-u)` there, a kink in `p'`. The state is one at a velocity
+/// reversal under a touchdown load (chamber B at -0.6 bar, the spool closing towards null).
+/// The attempt that first holds the kink fails; the step after it lands on the kink: at
+/// most 1 rejection, where error control alone would shrink the step again and again (a
+/// kink, not the step size, sets the error).
 #[test]
 fn a_cavitation_kink_that_failed_a_step_is_stepped_onto() {
     let p = CylinderParams::default();
@@ -212,13 +212,13 @@ fn a_cavitation_kink_that_failed_a_step_is_stepped_onto() {
     let (h, x_s) = (4.3332e-5, |tau: f64| 1.285e-7 - 2.96e-3 * tau);
     let run = |rtol: f64| {
         let mut s = start;
-        let mut work = IntegratorMemory::new(rtol);
-        work.h_next = 1e-4;
-        let stats = advance(&p, &mut s, h, P_RATED, f_ext, x_s, &mut work).unwrap();
+        let mut memory = RosenbrockMemory::new(rtol);
+        memory.h_next = 1e-4;
+        let stats = advance(&p, &mut s, h, P_RATED, f_ext, x_s, &mut memory).unwrap();
         (s, stats)
     };
     let (reference, _) = run(1e-12);
-    let (s, stats) = run(IntegratorMemory::default().rtol);
+    let (s, stats) = run(RosenbrockMemory::default().rtol);
     println!(
         "{} accepted, {} rejected, {} landings",
         stats.accepted, stats.rejected, stats.landings
@@ -234,11 +234,11 @@ fn cost_per_interval() {
     let p = CylinderParams::default();
     let interval = 1e-4;
     let measure = |name: &str, mut s: CylinderState, x_s: f64, warmup: f64, span: f64| {
-        let mut work = IntegratorMemory::default();
+        let mut memory = RosenbrockMemory::default();
         simulate(
             &p,
             &mut s,
-            &mut work,
+            &mut memory,
             &|_| x_s,
             (P_RATED, 0.0),
             (0.0, warmup, interval),
@@ -249,7 +249,7 @@ fn cost_per_interval() {
         let (stats, most) = simulate(
             &p,
             &mut s,
-            &mut work,
+            &mut memory,
             &|_| x_s,
             (P_RATED, 0.0),
             (0.0, span, interval),

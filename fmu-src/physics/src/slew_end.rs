@@ -3,8 +3,8 @@
 //! A new current command starts a slew at the segment's start that ends within a
 //! microsecond; the mode after it (usually the linear one) then runs to the segment's end,
 //! `z(S) = exp(A (S - tau)) z(tau)`. That span never repeats, so its propagator is a cached
-//! one of its leading bits and a Taylor series of 7-9 products for the rest: a tenth of
-//! the gait's work. The same end is `exp(A S) (z0 + c)`: the propagator of the whole
+//! one of its leading bits and a Taylor series of 7-9 products for the rest, on every step
+//! that changes the command. The same end is `exp(A S) (z0 + c)`: the propagator of the whole
 //! segment (a span that repeats, cached exactly) applied to the segment's start moved by a
 //! short series `c` of known vectors.
 //!
@@ -16,9 +16,9 @@
 //! and `w1 = (d A_s) z0`, and
 //! `c = sum_k (-A)^k e_U / k! int_0^tau s^k (w0 + w1 s) ds`.
 
+use super::augmented_state::{dot, Mat, Vector, EVOLVING, U};
 use super::driver::{Mode, MODES};
-use super::exact_integrator::{ModeSystem, BACK_TERMS, NEGLECTED_TERM, RECIPROCALS};
-use super::state::{dot, Mat, Vector, EVOLVING, U};
+use super::mode_systems::{ModeSystem, BACK_TERMS, NEGLECTED_TERM, RECIPROCALS};
 
 /// For each slew (up, down) and each mode after it: `[d, d A_s]` where the two modes
 /// differ only in the output row and `w` is linear in time, else `None`.
@@ -91,7 +91,7 @@ pub(crate) fn pulled_back(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::state::IREF;
+    use crate::augmented_state::I_CMD;
     use crate::{mode_system, Coefficients};
 
     fn systems() -> [ModeSystem; MODES.len()] {
@@ -132,7 +132,7 @@ mod tests {
             let (slew, after) = (&systems[from.index()], &systems[to.index()]);
             let mut z0 =
                 Vector::from_fn(|k, _| [1e-4, 0.3, 0.3, 1e-6, 0.0, 2e-5, 0.0, 72.0, 1.0][k]);
-            z0[IREF] = i_ref;
+            z0[I_CMD] = i_ref;
             for tau in [1e-9, 3e-8, 1e-7] {
                 let at_end = (slew.a * tau).exp() * z0;
                 let reference = (after.a * -tau).exp() * at_end;

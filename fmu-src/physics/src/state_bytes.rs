@@ -2,12 +2,12 @@
 //! driver mode, valve stops, the augmented state, the digital loops, the cylinder and its
 //! integrator's memory. Caches are not part of the state.
 
+use super::augmented_state::N;
 use super::cylinder::{CylinderState, N_STATES};
 use super::driver::MODES;
-use super::hbridge::Digital;
+use super::hbridge::HBridgeState;
 use super::outer_loop::OuterLoop;
-use super::rosenbrock::{IntegratorMemory, MEMORY_VALUES};
-use super::state::N;
+use super::rosenbrock::{RosenbrockMemory, MEMORY_VALUES};
 use super::valve::Stops;
 use super::{DrivenCylinder, Inputs, Params, Physics};
 use crate::bytes::ByteReader;
@@ -20,7 +20,7 @@ impl Physics {
         for x in a.z.iter() {
             out.extend_from_slice(&x.to_le_bytes());
         }
-        a.digital.write_bytes(out);
+        a.hbridge.write_bytes(out);
         a.outer.write_bytes(out);
         for x in a.cylinder.state.to_array().iter().chain(a.cylinder.memory.to_array().iter()) {
             out.extend_from_slice(&x.to_le_bytes());
@@ -44,7 +44,7 @@ impl Physics {
         for k in 0..N {
             a.z[k] = r.f64()?;
         }
-        a.digital = Digital::read_bytes(r)?;
+        a.hbridge = HBridgeState::read_bytes(r)?;
         a.outer = OuterLoop::read_bytes(r)?;
         let mut cylinder = [0.0; N_STATES];
         for x in cylinder.iter_mut() {
@@ -57,8 +57,8 @@ impl Physics {
         if !cylinder.iter().chain(memory.iter()).all(|x| x.is_finite()) {
             return Err("state holds non-finite cylinder values".into());
         }
-        let memory = IntegratorMemory::from_array(&memory);
-        // The tolerance is `solver.rtol`'s, carried in the memory the integrator reads.
+        let memory = RosenbrockMemory::from_array(&memory);
+        // The tolerance is `Params::solver_rtol`, carried in the memory the integrator reads.
         if memory.rtol != a.cylinder.memory.rtol {
             return Err(format!(
                 "state's integrator tolerance {:e} is not its solver.rtol {:e}",

@@ -9,8 +9,8 @@
 //! * Metering ports (critically centred): the orifice law of [`super::metering_ports`], which
 //!   feeds the cylinder ([`super::cylinder`]).
 
+use super::augmented_state::{unit, Mat, Vector, I, ONE, VF, XF, XS};
 use super::root_finding::newton_in_bracket;
-use super::state::{unit, Mat, Vector, I, ONE, VF, XF, XS};
 use super::Coefficients;
 
 /// Writes the first-stage and spool rows of `z' = A z`.

@@ -14,7 +14,7 @@ use std::ffi::{c_int, c_void};
 
 use ehsv_actuator::physics::{ControlMode, DriverKind};
 use ehsv_actuator::variables::{vr, N_VARIABLES};
-use ehsv_physics::rhs::{Held, Sampled, WholeModel, I, NY, PA, PB, U, UI, V, X, XF, XS};
+use ehsv_physics::rhs::{RhsInputs, Sampled, WholeModel, I, NY, PA, PB, U, UI, V, X, XF, XS};
 
 pub use cvode::{Api, Counters};
 
@@ -25,7 +25,7 @@ use crate::workloads::{Signal, Workload};
 /// What the solver's callback needs: the model and the inputs in force.
 struct Context<'a> {
     model: WholeModel,
-    held: Held,
+    held: RhsInputs,
     api: &'a Api,
 }
 
@@ -80,7 +80,7 @@ pub fn run(
         Sampled::at_start(&model, values[vr::I_COIL], rail, reference(q_ref0, x_ref0), 0.0);
     let mut ctx = Box::new(Context {
         model,
-        held: Held {
+        held: RhsInputs {
             i_cmd: sampled.command(&model, i_ref0),
             rail,
             u_bridge: sampled.bridge_output(rail),
@@ -101,7 +101,7 @@ pub fn run(
         let t1 = t0 + h;
         let [i_ref, q_ref, x_ref, f_ext] = signal.inputs(t0);
         let reference = reference(q_ref, x_ref);
-        let held = Held { i_cmd: sampled.command(&model, i_ref), f_ext, ..ctx.held };
+        let held = RhsInputs { i_cmd: sampled.command(&model, i_ref), f_ext, ..ctx.held };
         if held != ctx.held {
             ctx.held = held;
             solver.restart()?;
@@ -165,7 +165,7 @@ fn initial_state(model: &WholeModel, values: &[f64; N_VARIABLES]) -> [f64; NY] {
 }
 
 /// The recorded outputs at `y` (`workloads::OUTPUTS` order).
-fn outputs(model: &WholeModel, held: &Held, y: &[f64; NY]) -> [f64; 12] {
+fn outputs(model: &WholeModel, held: &RhsInputs, y: &[f64; NY]) -> [f64; 12] {
     let o = model.outputs(held, y);
     [
         o.i_coil,

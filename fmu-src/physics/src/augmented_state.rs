@@ -21,9 +21,9 @@ pub(crate) const VF: usize = 4;
 /// Spool displacement, m.
 pub(crate) const XS: usize = 5;
 /// Current command (constant over a step), A.
-pub(crate) const IREF: usize = 6;
+pub(crate) const I_CMD: usize = 6;
 /// Rail voltage V_supply - V_drop (constant over a step), V.
-pub(crate) const VMAX: usize = 7;
+pub(crate) const RAIL: usize = 7;
 /// The constant 1, for affine terms.
 pub(crate) const ONE: usize = 8;
 
@@ -65,9 +65,9 @@ fn product_of_columns(a: &Mat, z: &Vector, columns: usize) -> Vector {
     out
 }
 
-/// `a . b`, summed in two lanes (nalgebra's general `dot` spent ~37 instructions on nine
-/// entries; guards, their rates and the spool's rows are dotted with the state throughout
-/// the event search).
+/// `a . b`, summed in two independent lanes over the nine entries (a short dependency
+/// chain, no generic iteration): guards, their rates and the spool's rows are dotted with
+/// the state throughout the event search.
 #[inline]
 pub(crate) fn dot(a: &Vector, b: &Vector) -> f64 {
     let (a, b) = (a.as_slice(), b.as_slice());
@@ -95,9 +95,9 @@ pub(crate) fn propagate(p: &Mat, z: &Vector) -> Vector {
 const TWO_TO_63: f64 = 9_223_372_036_854_775_808.0;
 
 /// `x.ceil() as usize` (NaN and negatives give 0, `usize::MAX` from 2^63 on) without the
-/// call: x86-64's baseline has no rounding instruction, so `ceil` is a libm call (~40
-/// instructions) where every piece and sub-step count is taken. Through `i64`, whose
-/// conversions are one instruction each way (`usize`'s are branchy sequences).
+/// call: x86-64's baseline has no rounding instruction, so `ceil` is a libm call, and every
+/// piece and sub-step count takes one. Through `i64`, whose conversions are one instruction
+/// each way (`usize`'s are branchy sequences).
 #[inline]
 pub(crate) fn ceil_count(x: f64) -> usize {
     if x.is_nan() || x <= 0.0 {
