@@ -9,8 +9,8 @@
 //!
 //! # Modelling choices
 //! * **Pressures are gauge** (relative to atmosphere); the tank is at `p_tank` = 0.
-//! * **Valve ports** (critically centred, no lap, no leakage, [`super::metering_ports`]): for `x_s >= 0`
-//!   `Q_A = K3 x_s rsqrt(p_S - p_A)/sqrt(dp_r/2)` and `Q_B = K3 x_s rsqrt(p_B - p_T)/sqrt(dp_r/2)`,
+//! * **Valve ports** (critically centred, no lap, no leakage, [`super::metering_ports`]): for
+//!   `x_s >= 0` `Q_A = K3 x_s rsqrt(p_S - p_A)/sqrt(dp_r/2)` and `Q_B = K3 x_s rsqrt(p_B - p_T)/sqrt(dp_r/2)`,
 //!   mirrored for `x_s < 0`. `rsqrt` is a signed square root, replaced below `dp_laminar` by
 //!   the odd cubic that matches value and slope at `dp_laminar` (C1, slope `1.25/sqrt(dp_lam)`
 //!   at zero instead of infinite), so the Jacobian stays finite at a closed or balanced port.

@@ -1,6 +1,6 @@
-//! H-bridge driver ([`DriverKind::HBridge`](super::DriverKind::HBridge)): bipolar, centre-aligned PWM at `hbridge.f_pwm` switches
-//! the coil between +V_supply and -V_supply; a digital PI current loop sampled at
-//! `hbridge.f_sample` sets the duty cycle. The command computed at one sample takes effect
+//! H-bridge driver ([`DriverKind::HBridge`](super::DriverKind::HBridge)): bipolar,
+//! centre-aligned PWM at `hbridge.f_pwm` switches the coil between +V_supply and -V_supply;
+//! a digital PI current loop sampled at `hbridge.f_sample` sets the duty cycle. The command computed at one sample takes effect
 //! at the next (one-sample computation delay) and is latched at the start of a PWM period.
 //!
 //! Everything here happens at *time events* on an absolute clock (sample k at k/f_sample,

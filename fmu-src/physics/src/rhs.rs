@@ -1,7 +1,7 @@
 //! The whole model as one explicit right-hand side `dy = f(y, held inputs)`, built from the
-//! component functions that [`crate::Physics`] itself integrates: the coil and valve rows of the mode
-//! matrices (`coil::coil_rows`, `valve::valve_rows`), the PI coefficients of the driver and
-//! `cylinder::derivatives`. It is there for an independent integration of the same
+//! component functions that [`crate::Physics`] itself integrates: the coil and valve rows of
+//! the mode matrices (`coil::coil_rows`, `valve::valve_rows`), the PI coefficients of the
+//! driver and `cylinder::derivatives`. It is there for an independent integration of the same
 //! equations by a general ODE solver (the benchmark's CVODE peer, reference runs), so
 //! that the model is transcribed once.
 //!

@@ -1,4 +1,4 @@
-//! The physics' part of the instance state as bytes (the model frames and checks them):
+//! The physics' part of the instance state as bytes (whoever embeds the physics frames and checks them):
 //! driver mode, valve stops, the augmented state, the digital loops, the cylinder and its
 //! integrator's memory. Caches are not part of the state.
 
