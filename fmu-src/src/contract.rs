@@ -43,6 +43,10 @@ pub trait ModelContract: Clone {
         step: f64,
         log_event: Option<&mut dyn FnMut(&str)>,
     ) -> Result<(), String>;
+    /// Sets the `order`-th time derivative of input `index` for the steps that follow.
+    fn set_input_derivative(&mut self, index: usize, order: i32, value: f64) -> Result<(), String>;
+    /// The `order`-th time derivative of output `index` at the current communication point.
+    fn output_derivative(&self, index: usize, order: i32) -> Result<f64, String>;
     /// The whole state as self-checking bytes, and back (refusing bytes it did not write).
     fn to_bytes(&self) -> Vec<u8>;
     fn from_bytes(bytes: &[u8]) -> Result<Self, String>;

@@ -133,6 +133,16 @@ pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
 }
 
 fmi_functions! {
+    /// Derivatives (order 1) of real inputs for the following steps (canInterpolateInputs):
+    /// v_rod's is the rod's acceleration with the motion port; other inputs are held.
+    fn fmi2SetRealInputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize,
+        order: *const fmi2Integer, value: *const fmi2Real)
+        SetValues => |inst| inst.set_input_derivatives(vr, nvr, order, value);
+    /// Derivatives (order 1) of real outputs at the communication point
+    /// (maxOutputDerivativeOrder = 1).
+    fn fmi2GetRealOutputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize,
+        order: *const fmi2Integer, value: *mut fmi2Real)
+        GetValues => |inst| inst.get_output_derivatives::<Real2>(vr, nvr, order, value, nvr);
     /// No categories: all on/off; otherwise the named ones.
     fn fmi2SetDebugLogging(c: fmi2Component, loggingOn: fmi2Boolean, nCategories: usize,
         categories: *const fmi2String)
@@ -206,12 +216,7 @@ not_supported! {
     fn fmi2GetDirectionalDerivative(c: fmi2Component, vUnknown_ref: *const fmi2ValueReference,
         nUnknown: usize, vKnown_ref: *const fmi2ValueReference, nKnown: usize,
         dvKnown: *const fmi2Real, dvUnknown: *mut fmi2Real) " (providesDirectionalDerivative = false)";
-    /// Not supported (canInterpolateInputs = false).
-    fn fmi2SetRealInputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize,
-        order: *const fmi2Integer, value: *const fmi2Real) " (canInterpolateInputs = false)";
-    /// Not supported (maxOutputDerivativeOrder = 0).
-    fn fmi2GetRealOutputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize,
-        order: *const fmi2Integer, value: *mut fmi2Real) " (maxOutputDerivativeOrder = 0)";
+
 }
 
 // ---------------------------------------------------------------- stepping

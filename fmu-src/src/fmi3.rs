@@ -100,6 +100,12 @@ pub extern "C" fn fmi3GetVersion() -> *const c_char {
 }
 
 fmi_functions! {
+    /// Derivatives (order 1) of Float64 outputs at the communication point
+    /// (maxOutputDerivativeOrder = 1).
+    fn fmi3GetOutputDerivatives(instance: fmi3Instance,
+        valueReferences: *const fmi3ValueReference, nValueReferences: usize,
+        orders: *const fmi3Int32, values: *mut fmi3Float64, nValues: usize)
+        GetValues => |inst| inst.get_output_derivatives::<Float64>(valueReferences, nValueReferences, orders, values, nValues);
     /// No categories: all on/off; otherwise the named ones.
     fn fmi3SetDebugLogging(instance: fmi3Instance, loggingOn: fmi3Boolean, nCategories: usize,
         categories: *const fmi3String)
@@ -402,10 +408,7 @@ not_supported! {
     fn fmi3GetNumberOfContinuousStates(instance: fmi3Instance, nContinuousStates: *mut usize) " (Co-Simulation only)";
     /// Not supported: without event mode the instance is in Step Mode after initialisation.
     fn fmi3EnterStepMode(instance: fmi3Instance) " (no event mode: the instance is in Step Mode after fmi3ExitInitializationMode)";
-    /// Not supported (maxOutputDerivativeOrder = 0).
-    fn fmi3GetOutputDerivatives(instance: fmi3Instance,
-        valueReferences: *const fmi3ValueReference, nValueReferences: usize,
-        orders: *const fmi3Int32, values: *mut fmi3Float64, nValues: usize) " (maxOutputDerivativeOrder = 0)";
+
     /// Scheduled Execution: not provided.
     fn fmi3ActivateModelPartition(instance: fmi3Instance, clockReference: fmi3ValueReference,
         activationTime: fmi3Float64) " (Co-Simulation only)";

@@ -12,7 +12,10 @@ use std::cell::RefCell;
 
 use crate::contract::{communication_point_tolerance, ModelContract};
 use crate::physics::bytes::{frame, unframe, ByteReader};
-use crate::physics::{ControlMode, DriverKind, Params, Physics, StepEvents, Work};
+use crate::physics::{
+    ControlMode, CylinderLoadParams, DriverKind, Inputs, Params, Physics, StepEvents, Work,
+    RATE_PROBE,
+};
 use crate::variables::{
     inputs, params, start_values, vr, write_outputs, Causality, Coded, Variability, Variable,
     N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
@@ -36,9 +39,18 @@ struct State {
     /// Parameters and inputs as set by the importer, outputs as last computed; by value reference.
     values: [f64; N_VARIABLES],
     physics: Physics,
+    /// The host's input derivative of v_rod (m/s2), held until it sets another (0: none).
+    rod_acceleration: f64,
     /// Before initialisation: parameters, inputs or the start time changed since `physics`
     /// and the outputs were built.
     stale: bool,
+}
+
+impl State {
+    /// The inputs in force: the value array's and the input derivative.
+    fn inputs(&self) -> Inputs {
+        Inputs { a_rod: self.rod_acceleration, ..inputs(&self.values) }
+    }
 }
 
 impl Default for Model {
@@ -52,7 +64,7 @@ impl Model {
         let values = start_values();
         let physics = Physics::start(&start_params(), &inputs(&values), 0.0)
             .expect("the start values are valid");
-        let mut state = State { values, physics, stale: false };
+        let mut state = State { values, physics, rod_acceleration: 0.0, stale: false };
         state.write_outputs();
         Model { time: 0.0, initialized: false, state: RefCell::new(state) }
     }
@@ -109,7 +121,7 @@ impl Model {
         let changes = changes.into_iter();
         // Everything that can refuse a value alone is checked before anything is written.
         let mut retune = false;
-        let (mut x_ref, mut stroke) = (state.values[vr::X_REF], state.values[vr::CYLINDER_STROKE]);
+        let (mut x_ref, mut x_rod) = (state.values[vr::X_REF], state.values[vr::X_ROD]);
         for (index, value) in changes.clone() {
             // A value the model holds already was accepted when it was set (or is a start
             // value): only who may set what is checked again (importers resend unchanged
@@ -119,12 +131,13 @@ impl Model {
             retune |= !held && VARIABLES[index].causality == Causality::Parameter;
             match index {
                 vr::X_REF => x_ref = value,
-                vr::CYLINDER_STROKE => stroke = value,
+                vr::X_ROD => x_rod = value,
                 _ => {}
             }
         }
         if initialized {
-            check_x_ref_fits(x_ref, stroke)?;
+            // The geometry is fixed once initialised.
+            check_positions_fit(x_ref, x_rod, &state.values)?;
         }
         if initialized && retune {
             return state.retune(&mut changes.into_iter(), self.time);
@@ -158,8 +171,8 @@ impl Model {
             return;
         }
         state.stale = false;
-        let built = params(&state.values)
-            .and_then(|p| Physics::start(&p, &inputs(&state.values), self.time));
+        let built =
+            params(&state.values).and_then(|p| Physics::start(&p, &state.inputs(), self.time));
         if let Ok(physics) = built {
             state.physics = physics;
             state.write_outputs();
@@ -172,7 +185,7 @@ impl Model {
         let state = self.state.get_mut();
         let p = params(&state.values)?;
         check_inputs_fit(&state.values)?;
-        let inputs = inputs(&state.values);
+        let inputs = state.inputs();
         state.physics = Physics::start(&p, &inputs, self.time)?;
         state.physics.prepare_first_step(&inputs, self.time, DEFAULT_STEP_SIZE);
         state.write_outputs();
@@ -197,7 +210,7 @@ impl Model {
     ) -> Result<StepEvents, String> {
         let state = self.state.get_mut();
         // A step that changes nothing keeps the outputs written after the last one.
-        let events = match state.physics.step(&inputs(&state.values), self.time, step)? {
+        let events = match state.physics.step(&state.inputs(), self.time, step)? {
             Some(events) => {
                 state.write_outputs();
                 events
@@ -206,6 +219,61 @@ impl Model {
         };
         self.time = current_time + step;
         Ok(events)
+    }
+
+    /// Sets the `order`-th time derivative of input `index` for the steps that follow (FMI 2
+    /// `canInterpolateInputs`, order 1): that of v_rod is the rod's acceleration over the
+    /// step; the other inputs are held over the step, so their derivatives are checked and
+    /// not used.
+    pub fn set_input_derivative(
+        &mut self,
+        index: usize,
+        order: i32,
+        value: f64,
+    ) -> Result<(), String> {
+        let var = VARIABLES.get(index).ok_or_else(|| format!("unknown value reference {index}"))?;
+        if var.causality != Causality::Input {
+            return Err(format!("{} is not an input: it has no input derivative", var.name));
+        }
+        if order != 1 {
+            return Err(format!(
+                "order {order} for {}: input derivatives of order 1 are supported",
+                var.name
+            ));
+        }
+        check_input_derivative(index, value)?;
+        if index == vr::V_ROD {
+            self.state.get_mut().rod_acceleration = value;
+        }
+        Ok(())
+    }
+
+    /// The `order`-th time derivative of output `index` at the current communication point
+    /// (order 1: the rate of the instantaneous value; for F_rod, of the force at the
+    /// step's end).
+    pub fn output_derivative(&self, index: usize, order: i32) -> Result<f64, String> {
+        let var = VARIABLES.get(index).ok_or_else(|| format!("unknown value reference {index}"))?;
+        if var.causality != Causality::Output || var.ty != crate::variables::VarType::Real {
+            return Err(format!("{} is not a real output: it has no output derivative", var.name));
+        }
+        if order != 1 {
+            return Err(format!(
+                "order {order} for {}: output derivatives of order 1 are provided \
+                 (maxOutputDerivativeOrder = 1)",
+                var.name
+            ));
+        }
+        if !self.initialized {
+            self.refresh_before_start();
+        }
+        // A central difference along the state's exact rates: second order in the probe's
+        // span, which is short against every time constant.
+        let state = self.state.borrow();
+        let (mut ahead, mut behind) = ([0.0; N_VARIABLES], [0.0; N_VARIABLES]);
+        let inputs = state.inputs();
+        write_outputs(&state.physics.outputs_along(&inputs, RATE_PROBE), &mut ahead);
+        write_outputs(&state.physics.outputs_along(&inputs, -RATE_PROBE), &mut behind);
+        Ok((ahead[index] - behind[index]) / (2.0 * RATE_PROBE))
     }
 
     /// Cumulative work counters of the integrators (for benchmarks; not part of the state).
@@ -277,6 +345,7 @@ impl Model {
         body.extend_from_slice(&(N_VARIABLES as u32).to_le_bytes());
         body.push(self.initialized as u8);
         body.extend_from_slice(&self.time.to_le_bytes());
+        body.extend_from_slice(&state.rod_acceleration.to_le_bytes());
         for v in &state.values {
             body.extend_from_slice(&v.to_le_bytes());
         }
@@ -294,6 +363,9 @@ impl Model {
         }
         let initialized = r.u8()? != 0;
         let time = r.f64()?;
+        let rod_acceleration = r.f64()?;
+        check_input_derivative(vr::V_ROD, rod_acceleration)
+            .map_err(|e| format!("state holds an invalid input derivative: {e}"))?;
         let mut values = [0.0; N_VARIABLES];
         for v in values.iter_mut() {
             *v = r.f64()?;
@@ -303,11 +375,12 @@ impl Model {
         if initialized {
             check_inputs_fit(&values).map_err(|e| format!("state holds invalid inputs: {e}"))?;
         }
-        let physics = Physics::read_bytes(&p, &inputs(&values), &mut r)?;
+        let inputs = Inputs { a_rod: rod_acceleration, ..inputs(&values) };
+        let physics = Physics::read_bytes(&p, &inputs, &mut r)?;
         if !r.is_at_end() {
             return Err("state has trailing bytes".into());
         }
-        let state = State { values, physics, stale: false };
+        let state = State { values, physics, rod_acceleration, stale: false };
         Ok(Model { time, initialized, state: RefCell::new(state) })
     }
 }
@@ -346,17 +419,52 @@ fn not_settable(index: usize) -> String {
 }
 
 /// The rules between inputs and parameters that the table's ranges cannot express:
-/// x_ref within the stroke (the table bounds it by the longest stroke allowed).
-fn check_inputs_fit(v: &[f64; N_VARIABLES]) -> Result<(), String> {
-    check_x_ref_fits(v[vr::X_REF], v[vr::CYLINDER_STROKE])
+/// The largest rod acceleration a host may prescribe (m/s2): far beyond any servo
+/// cylinder (10 m/s reached in 0.1 ms).
+const MAX_ROD_ACCELERATION: f64 = 1e5;
+
+/// An input derivative must be finite, and the rod's acceleration physically sized.
+fn check_input_derivative(index: usize, value: f64) -> Result<(), String> {
+    let bound = if index == vr::V_ROD { MAX_ROD_ACCELERATION } else { f64::INFINITY };
+    if !value.is_finite() || value.abs() > bound {
+        return Err(format!(
+            "the derivative of {} = {value} rejected: allowed range is [-{bound:e}, {bound:e}] \
+             per second",
+            VARIABLES[index].name
+        ));
+    }
+    Ok(())
 }
 
-fn check_x_ref_fits(x_ref: f64, stroke: f64) -> Result<(), String> {
-    let half = 0.5 * stroke;
+/// x_ref within the stroke and x_rod within the rod's travel (the table bounds them by the
+/// longest stroke allowed).
+fn check_inputs_fit(v: &[f64; N_VARIABLES]) -> Result<(), String> {
+    check_positions_fit(v[vr::X_REF], v[vr::X_ROD], v)
+}
+
+/// x_ref within +-stroke/2; x_rod within the stroke and the end stops' deepest
+/// penetration, [`CylinderLoadParams::rod_travel`], for the geometry in `v`.
+fn check_positions_fit(x_ref: f64, x_rod: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
+    let half = 0.5 * v[vr::CYLINDER_STROKE];
     if x_ref.abs() > half {
         return Err(format!(
             "x_ref = {x_ref} rejected: allowed range is [{}, {half}] (+-cylinder.stroke/2)",
             -half
+        ));
+    }
+    let geometry = CylinderLoadParams {
+        bore: v[vr::CYLINDER_BORE],
+        rod: v[vr::CYLINDER_ROD],
+        stroke: v[vr::CYLINDER_STROKE],
+        v_dead: v[vr::CYLINDER_V_DEAD],
+        ..Params::PAPER.cylinder
+    };
+    let (lo, hi) = geometry.rod_travel();
+    if !(lo..=hi).contains(&x_rod) {
+        return Err(format!(
+            "x_rod = {x_rod} rejected: allowed range is [{lo:.6}, {hi:.6}] (the stroke and, \
+             beyond each end, the end stop's deepest penetration before the chamber's dead \
+             volume is used up)"
         ));
     }
     Ok(())
@@ -481,7 +589,7 @@ impl State {
             self.values[index] = value;
         }
         let rebuilt =
-            params(&self.values).and_then(|p| self.physics.retune(&p, &inputs(&self.values), time));
+            params(&self.values).and_then(|p| self.physics.retune(&p, &self.inputs(), time));
         if let Err(e) = rebuilt {
             self.values = before;
             return Err(e);
@@ -526,7 +634,7 @@ enum StepFault {
     NoAdvance,
 }
 
-const MAGIC: &[u8; 8] = b"EHSVST02";
+const MAGIC: &[u8; 8] = b"EHSVST03";
 
 impl ModelContract for Model {
     const VARIABLES: &'static [Variable] = &VARIABLES;
@@ -576,6 +684,12 @@ impl ModelContract for Model {
             }
         }
         Ok(())
+    }
+    fn set_input_derivative(&mut self, index: usize, order: i32, value: f64) -> Result<(), String> {
+        Model::set_input_derivative(self, index, order, value)
+    }
+    fn output_derivative(&self, index: usize, order: i32) -> Result<f64, String> {
+        Model::output_derivative(self, index, order)
     }
     fn to_bytes(&self) -> Vec<u8> {
         Model::to_bytes(self)

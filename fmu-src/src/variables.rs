@@ -190,12 +190,22 @@ pub const CONTROL_MODE_TYPE: Enumeration = Enumeration {
     ],
 };
 
-pub const ENUMERATIONS: &[Enumeration] = &[DRIVER_TYPE, CONTROL_MODE_TYPE];
+/// How the rod meets its load, in the order of [`RodPort::ALL`].
+pub const ROD_PORT_TYPE: Enumeration = Enumeration {
+    name: "RodPort",
+    description: "How the rod meets its load",
+    items: &[
+        ("force", "the FMU moves cylinder.mass under F_ext"),
+        ("motion", "the host moves the rod (x_rod, v_rod) and takes the force F_rod"),
+    ],
+};
+
+pub const ENUMERATIONS: &[Enumeration] = &[DRIVER_TYPE, CONTROL_MODE_TYPE, ROD_PORT_TYPE];
 
 use Causality::*;
 use Variability::*;
 
-use crate::physics::{ControlMode, DriverKind, Inputs, Outputs, Params};
+use crate::physics::{ControlMode, DriverKind, Inputs, Outputs, Params, RodPort};
 
 /// A Boolean or enumeration field, stored in the value array as its integer value.
 pub trait Coded: Sized {
@@ -228,7 +238,7 @@ macro_rules! coded_enumeration {
     )*};
 }
 
-coded_enumeration!(DriverKind => "driver", ControlMode => "control_mode");
+coded_enumeration!(DriverKind => "driver", ControlMode => "control_mode", RodPort => "cylinder.port");
 
 const fn real(
     name: &'static str,
@@ -335,6 +345,9 @@ impl Variable {
 }
 
 pub use crate::physics::VALVE_RATED_CURRENT;
+
+/// The fastest rod motion a host may prescribe (m/s).
+const MAX_ROD_SPEED: f64 = 10.0;
 
 /// Longest stroke (m) of a servo cylinder this model describes (`cylinder.stroke`'s maximum,
 /// which bounds `x_ref`).
@@ -513,7 +526,7 @@ variable_table! {
     // +-100 kN: 72 times the default stall force p_S*A_A (1.39 kN) and 5 times the largest
     // stall force the ranges allow at this bore (1000 bar on 16 mm: 20 kN); a larger force
     // crushes the oil column of any actuator this model describes.
-    F_EXT => input[f_ext] real: input("F_ext", "N", None, "External force on the rod, positive in the direction of +x (extension)")
+    F_EXT => input[f_ext] real: input("F_ext", "N", None, "External force on the rod, positive in the direction of +x (extension); unused when cylinder.port = motion")
         .range(Some(-1.0e5), Some(1.0e5)),
     // +-1e-3 m3/s (60 L/min): four times the valve's rated flow (2.53e-4 m3/s, 15 L/min at
     // 10 mA), which the outer loop cannot exceed with its default limit.
@@ -536,7 +549,7 @@ variable_table! {
     CYLINDER_STROKE => param[cylinder.stroke] real: param("cylinder.stroke", Some("m"), "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2")
         .positive()
         .range(Some(0.0), Some(MAX_STROKE)),
-    CYLINDER_MASS => param[cylinder.mass] real: param("cylinder.mass", Some("kg"), "Moving mass of piston, rod and load").positive().tunable(),
+    CYLINDER_MASS => param[cylinder.mass] real: param("cylinder.mass", Some("kg"), "Moving mass of piston, rod and load; unused when cylinder.port = motion (the host moves the mass)").positive().tunable(),
     CYLINDER_BETA => param[cylinder.beta] real: param("cylinder.beta", Some("Pa"), "Effective bulk modulus of oil, hoses and walls").positive(),
     CYLINDER_V_DEAD => param[cylinder.v_dead] real: param("cylinder.V_dead", Some("m3"), "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
     CYLINDER_B_VISCOUS => param[cylinder.b_viscous] real: param("cylinder.b_viscous", Some("N.s/m"), "Viscous friction coefficient").non_negative().tunable(),
@@ -585,6 +598,18 @@ variable_table! {
     // budgets, tighter ones for references. Past 1e-3 the error control means nothing.
     SOLVER_RTOL => param[solver_rtol] real: param("solver.rtol", None, "Relative tolerance of the cylinder's Rosenbrock integrator (errors weighed against rtol*max(|y|, 1 MPa / 10 mm / 0.1 m/s)); driver, coil and valve are exact at any setting")
         .range(Some(1.0e-12), Some(1.0e-3)),
+    // The rod's port to a multibody host (appended; docs/coupling.md). x_rod's range is the
+    // longest stroke's; once the geometry is known it is checked against the stroke and the
+    // end stops' largest penetration (the chamber's dead volume). v_rod: 10 m/s is far
+    // beyond any servo cylinder's speed (this one's valve moves the piston at ~1.3 m/s).
+    CYLINDER_PORT => param[cylinder.port] coded: enumeration("cylinder.port", &ROD_PORT_TYPE, "How the rod meets its load: force (the FMU moves cylinder.mass under F_ext) or motion (the host moves the rod by x_rod, v_rod and takes F_rod)"),
+    X_ROD => input[x_rod] real: input("x_rod", "m", Some("mm"), "Rod position from the host at the communication point, 0 = mid-stroke (cylinder.port = motion)")
+        .range(Some(-MAX_STROKE), Some(MAX_STROKE)),
+    V_ROD => input[v_rod] real: input("v_rod", "m/s", None, "Rod velocity from the host at the communication point; the rod moves as x_rod + v_rod (t - t_k) over the step (cylinder.port = motion)")
+        .range(Some(-MAX_ROD_SPEED), Some(MAX_ROD_SPEED)),
+    F_ROD => output[f_rod] real: output("F_rod", "N", None, "Force of the actuator on the rod in +x (hydraulic force, friction, end stops): its mean over the last step"),
+    DF_ROD_DX => output[df_rod_dx] real: output("dF_rod_dx", "N/m", None, "Local stiffness of F_rod to the rod position at the step's end (oil columns and end stops)"),
+    DF_ROD_DV => output[df_rod_dv] real: output("dF_rod_dv", "N.s/m", None, "Local damping of F_rod to the rod velocity at the step's end (friction and end stops)"),
 }
 
 /// Index of the variable with this name.
@@ -651,7 +676,7 @@ mod tests {
         }
         assert_eq!(VARIABLES[vr::COIL_K_B].name, "coil.K_b");
         assert_eq!(VARIABLES[vr::POSITION_KD].name, "position.Kd");
-        assert_eq!(N_VARIABLES, 80);
+        assert_eq!(N_VARIABLES, 86);
     }
 
     /// Users' scripts and saved states hold value references: every variable keeps its row.
@@ -739,6 +764,12 @@ mod tests {
             "relief.dp_override",
             "relief.Q_rated",
             "solver.rtol",
+            "cylinder.port",
+            "x_rod",
+            "v_rod",
+            "F_rod",
+            "dF_rod_dx",
+            "dF_rod_dv",
         ];
         assert_eq!(names[..pinned.len()], pinned);
     }

@@ -32,8 +32,8 @@ impl Digest {
         }
         let bytes = m.to_bytes();
         // Frame: magic (8) | length (8) | body | checksum (8); body: count (4) | initialised
-        // (1) | time (8) | values (8 each) | the physics.
-        let physics_start = 16 + 4 + 1 + 8 + 8 * N_VARIABLES;
+        // (1) | time (8) | the rod's input derivative (8) | values (8 each) | the physics.
+        let physics_start = 16 + 4 + 1 + 8 + 8 + 8 * N_VARIABLES;
         self.feed(&bytes[physics_start..bytes.len() - 8]);
     }
 }

@@ -190,7 +190,8 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
         assert!(f.log().has(&[needle]), "{what}: {}", f.log().dump());
     }
     // Well-formed frames holding values the FMU would never accept from a setter.
-    let value_at = |r: usize| 4 + 1 + 8 + 8 * r; // n_variables u32 | initialized u8 | time f64 | values
+    // n_variables u32 | initialized u8 | time f64 | the rod's input derivative f64 | values
+    let value_at = |r: usize| 4 + 1 + 8 + 8 + 8 * r;
     let model_body = &model_body[..];
     for (r, v) in [
         (vr::I_REF, f64::NAN),
@@ -206,6 +207,10 @@ fn every_corrupted_truncated_or_foreign_state_is_refused<F: Api>() {
     let mut b = model_body.to_vec();
     b[5..13].copy_from_slice(&f64::NAN.to_le_bytes());
     refused(&state(head, &b), "time = NaN in a valid frame".into());
+    let mut b = model_body.to_vec();
+    b[13..21].copy_from_slice(&f64::INFINITY.to_le_bytes());
+    refused(&state(head, &b), "an infinite rod acceleration in a valid frame".into());
+    assert!(f.log().has(&["derivative of v_rod"]), "{}", f.log().dump());
     // A valid solver.rtol that is not the tolerance the integrator's memory carries.
     let mut b = model_body.to_vec();
     b[value_at(vr::SOLVER_RTOL)..value_at(vr::SOLVER_RTOL) + 8]

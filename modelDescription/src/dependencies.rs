@@ -28,9 +28,16 @@ pub(crate) fn dependencies() -> &'static Dependencies {
     MEASURED.get_or_init(measure)
 }
 
-/// Commands that move every part of the model (valve open, piston loaded, loops active).
-const MOVING: &[(usize, f64)] =
-    &[(vr::I_REF, 5e-3), (vr::Q_REF, 1e-4), (vr::X_REF, 5e-3), (vr::F_EXT, 100.0)];
+/// Commands that move every part of the model (valve open, piston loaded, loops active,
+/// the rod moved by a host).
+const MOVING: &[(usize, f64)] = &[
+    (vr::I_REF, 5e-3),
+    (vr::Q_REF, 1e-4),
+    (vr::X_REF, 5e-3),
+    (vr::F_EXT, 100.0),
+    (vr::X_ROD, 2e-3),
+    (vr::V_ROD, 0.05),
+];
 /// Branches a small perturbation of one known does not reach from rest: the driver at its
 /// rail (5 mA needs 5 V across 1 kOhm) and just below it, the valve against its travel
 /// stops and just short of the spool's (5 mA hold it at K1 i / Kw = 0.19 mm).
@@ -104,13 +111,16 @@ fn operating_points() -> Vec<Model> {
         [MOVING, SPOOL_STOP, FLAPPER_STOP].concat(),
     ];
     let mut points = vec![];
-    for driver in enumeration_values(vr::DRIVER) {
-        for mode in enumeration_values(vr::CONTROL_MODE) {
-            for setting in &settings {
-                let mut model = Model::new();
-                let structure = [(vr::DRIVER, driver), (vr::CONTROL_MODE, mode)];
-                if structure.iter().chain(setting).all(|&(k, x)| model.set(k, x).is_ok()) {
-                    points.push(model);
+    for port in enumeration_values(vr::CYLINDER_PORT) {
+        for driver in enumeration_values(vr::DRIVER) {
+            for mode in enumeration_values(vr::CONTROL_MODE) {
+                for setting in &settings {
+                    let mut model = Model::new();
+                    let structure =
+                        [(vr::CYLINDER_PORT, port), (vr::DRIVER, driver), (vr::CONTROL_MODE, mode)];
+                    if structure.iter().chain(setting).all(|&(k, x)| model.set(k, x).is_ok()) {
+                        points.push(model);
+                    }
                 }
             }
         }

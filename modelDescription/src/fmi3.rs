@@ -202,7 +202,7 @@ pub(crate) fn model_description() -> ModelDescription {
             provides_directional_derivatives: false,
             provides_adjoint_derivatives: false,
             can_handle_variable_communication_step_size: true,
-            max_output_derivative_order: 0,
+            max_output_derivative_order: 1,
             provides_intermediate_update: false,
             can_return_early_after_intermediate_update: false,
             has_event_mode: false,

@@ -59,6 +59,8 @@ INPUTS = {
     "F_ext": ("N", 0.0),
     "Q_ref": ("m3/s", 0.0),
     "x_ref": ("m", 0.0),
+    "x_rod": ("m", 0.0),
+    "v_rod": ("m/s", 0.0),
 }
 OUTPUTS = {
     "i_coil": "A",
@@ -74,6 +76,9 @@ OUTPUTS = {
     "x_piston": "m",
     "v_piston": "m/s",
     "F_hydraulic": "N",
+    "F_rod": "N",
+    "dF_rod_dx": "N/m",
+    "dF_rod_dv": "N.s/m",
 }
 DRIVERS = {"ideal_current": 0, "voltage": 1, "opamp_pi": 2, "industrial": 3, "hbridge_pid": 4}
 CONTROL_MODES = {"current": 0, "flow": 1, "position": 2}

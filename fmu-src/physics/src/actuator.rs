@@ -3,6 +3,7 @@
 //! digital loops, the cylinder), with the rules that keep the state consistent with its
 //! mode ([`Actuator::settle`]) and take new commands into it.
 
+use super::cylinder_terms::net_force;
 use super::*;
 
 /// The model and its state; the integrator that advances it is [`Physics`]'s other half.
@@ -68,8 +69,7 @@ impl Actuator {
         let held = HeldInputs::new(&params, inputs);
         params.cylinder.check_supply(held.p_supply)?;
         actuator.outer = OuterLoop::at_start(&params.loops, held.reference, start_time);
-        actuator.cylinder.state =
-            cylinder::equilibrium(&params.cylinder, held.p_supply, held.f_ext);
+        actuator.start_cylinder(&held, inputs);
         let i_cmd = actuator.current_command(&held);
         actuator.equilibrium(i_cmd, held.rail, start_time);
         Ok(actuator)
@@ -123,9 +123,14 @@ impl Actuator {
         }
     }
 
-    /// The outputs at the current state.
+    /// The outputs at the current state (F_rod: the force at the state).
     pub(crate) fn outputs(&self) -> Outputs {
-        let z = &self.z;
+        self.outputs_at(&self.z, &self.cylinder.state)
+    }
+
+    /// The outputs at augmented state `z` and cylinder state `cylinder` (F_rod: the force
+    /// there).
+    pub(crate) fn outputs_at(&self, z: &Vector, cylinder: &CylinderState) -> Outputs {
         let mut out = Outputs {
             i_coil: z[I],
             u_driver: z[U],
@@ -136,7 +141,9 @@ impl Actuator {
             ..Outputs::default()
         };
         let c = &self.params.cylinder;
-        cylinder::write_outputs(c, &self.cylinder.state, z[XS], self.p_supply, &mut out);
+        cylinder::write_outputs(c, cylinder, z[XS], self.p_supply, &mut out);
+        out.f_rod = net_force(c, cylinder, 0.0)[0];
+        (out.df_rod_dx, out.df_rod_dv) = rod_port::rod_stiffness(c, cylinder, z[XS], self.p_supply);
         out
     }
 }

@@ -11,7 +11,8 @@ const MAX_TIME_EVENTS_PER_STEP: u64 = 10_000_000;
 
 /// The key of [`Physics`]'s `resting`: the inputs and the step size, as bits.
 fn rest_key(i: &Inputs, step: f64) -> RestKey {
-    [i.i_ref, i.v_supply, i.p_supply, i.f_ext, i.q_ref, i.x_ref, step].map(f64::to_bits)
+    [i.i_ref, i.v_supply, i.p_supply, i.f_ext, i.q_ref, i.x_ref, i.x_rod, i.v_rod, i.a_rod, step]
+        .map(f64::to_bits)
 }
 
 impl Physics {

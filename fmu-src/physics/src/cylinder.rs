@@ -53,7 +53,7 @@
 
 use super::cylinder_terms::{chamber_terms, free_volumes, net_force, port_flows, relief_flow};
 use super::metering_ports::MeteringPorts;
-use super::params::{CylinderLoadParams, Outputs, ValveParams};
+use super::params::{CylinderLoadParams, Outputs, RodPort, ValveParams};
 use super::root_finding::newton_in_bracket;
 
 pub(crate) use super::cylinder_terms::MIN_VOLUME_FRACTION;
@@ -150,16 +150,6 @@ impl CylinderParams {
         Ok(())
     }
 
-    /// Piston area on the A (cap) side (m2).
-    pub(crate) fn area_a(&self) -> f64 {
-        std::f64::consts::FRAC_PI_4 * self.bore * self.bore
-    }
-
-    /// Annulus area on the B (rod) side (m2).
-    pub(crate) fn area_b(&self) -> f64 {
-        self.area_a() - std::f64::consts::FRAC_PI_4 * self.rod * self.rod
-    }
-
     #[cfg(test)]
     /// Extension stall force p_S*A_A (B at tank) (N).
     pub(crate) fn stall_force(&self, p_supply: f64) -> f64 {
@@ -231,10 +221,21 @@ pub(crate) fn derivatives(
     state: &CylinderState,
     x_s: f64,
     p_supply: f64,
-    f_ext: f64,
+    load: f64,
 ) -> [f64; 4] {
     let [dp_a, dp_b] = chamber_terms(params, state, x_s, p_supply).pressure_rates;
-    [dp_a, dp_b, state.v, net_force(params, state, f_ext)[0] / params.mass]
+    [dp_a, dp_b, state.v, acceleration(params, state, load)]
+}
+
+/// The rod's acceleration under `load`: with the force port `load` is F_ext and the
+/// acceleration the net force over the moving mass; with the motion port `load` is the
+/// acceleration the host prescribes over the step.
+#[inline(always)]
+pub(crate) fn acceleration(params: &CylinderParams, state: &CylinderState, load: f64) -> f64 {
+    match params.port {
+        RodPort::Force => net_force(params, state, load)[0] / params.mass,
+        RodPort::Motion => load,
+    }
 }
 
 /// Writes the hydraulic side's outputs at a state into `out`.
@@ -320,6 +321,27 @@ pub(crate) fn next_cavitation_switch(
         }
     }
     first
+}
+
+impl CylinderLoadParams {
+    /// Piston area on the A (cap) side (m2).
+    pub fn area_a(&self) -> f64 {
+        std::f64::consts::FRAC_PI_4 * self.bore * self.bore
+    }
+
+    /// Annulus area on the B (rod) side (m2).
+    pub fn area_b(&self) -> f64 {
+        self.area_a() - std::f64::consts::FRAC_PI_4 * self.rod * self.rod
+    }
+
+    /// The rod positions the chambers allow (m): the stroke and, beyond each end, the end
+    /// stop's deepest penetration before the chamber's volume reaches its clamp
+    /// (a state beyond is refused).
+    pub fn rod_travel(&self) -> (f64, f64) {
+        let depth = (1.0 - MIN_VOLUME_FRACTION) * self.v_dead;
+        let half = 0.5 * self.stroke;
+        (-half - depth / self.area_a(), half + depth / self.area_b())
+    }
 }
 
 #[cfg(test)]

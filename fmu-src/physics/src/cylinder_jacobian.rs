@@ -4,6 +4,7 @@
 
 use super::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V, X};
 use super::cylinder_terms::{chamber_terms, net_force};
+use super::params::RodPort;
 
 /// The model linearised at a state: `f` as [`super::cylinder::derivatives`] computes it
 /// (from the same terms), the analytic Jacobian `df/dy` from the terms' slopes, and the
@@ -14,14 +15,14 @@ pub(crate) fn linearise(
     y: &Vec4,
     x_s: f64,
     p_supply: f64,
-    f_ext: f64,
+    load: f64,
 ) -> (Vec4, Mat4, Vec4) {
     let state = CylinderState::from_array(y);
     let (area_a, area_b) = (params.area_a(), params.area_b());
     let chambers = chamber_terms(params, &state, x_s, p_supply);
-    let [force, dforce_dx, dforce_dv] = net_force(params, &state, f_ext);
+    let [force, dforce_dx, dforce_dv] = net_force(params, &state, load);
     let [dp_a, dp_b] = chambers.pressure_rates;
-    let f = [dp_a, dp_b, state.v, force / params.mass];
+    let mut f = [dp_a, dp_b, state.v, force / params.mass];
 
     let [(volume_a, dva_dx), (volume_b, dvb_dx)] = chambers.volumes;
     let [inflow_a, inflow_b] = chambers.inflows;
@@ -47,6 +48,11 @@ pub(crate) fn linearise(
     jac[V][PB] = -area_b / params.mass;
     jac[V][X] = dforce_dx / params.mass;
     jac[V][V] = dforce_dv / params.mass;
+    if params.port == RodPort::Motion {
+        // The host moves the rod at the acceleration `load`: nothing here acts back on it.
+        f[V] = load;
+        jac[V] = [0.0; N_STATES];
+    }
     let f_xs = [stiff_a * cf_a * ports.dqa_dxs, -stiff_b * cf_b * ports.dqb_dxs, 0.0, 0.0];
     (f, jac, f_xs)
 }

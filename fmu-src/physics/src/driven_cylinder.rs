@@ -3,7 +3,6 @@
 //! speed alone while it glides.
 
 use super::*;
-use crate::cylinder_terms::net_force;
 
 /// Pieces this short (events right at a piece start) take an Euler step in the cylinder, s.
 const TINY_PIECE: f64 = 1e-10;
@@ -38,7 +37,7 @@ impl DrivenCylinder {
     ) -> Result<(), String> {
         let spool_still = (z1[XS] - z0[XS]).abs() <= 1e-13 * z0[XS].abs().max(1e-9);
         if spool_still {
-            let key = [z0[XS].to_bits(), inputs.p_supply.to_bits(), inputs.f_ext.to_bits()];
+            let key = [z0[XS].to_bits(), inputs.p_supply.to_bits(), inputs.load.to_bits()];
             if self.resting_at == Some(key) {
                 return Ok(());
             }
@@ -64,7 +63,7 @@ impl DrivenCylinder {
                 &self.state,
                 0.5 * (z0[XS] + z1[XS]),
                 inputs.p_supply,
-                inputs.f_ext,
+                inputs.load,
             );
             let mut y = self.state.to_array();
             for (y, d) in y.iter_mut().zip(f) {
@@ -85,7 +84,7 @@ impl DrivenCylinder {
                 &mut self.state,
                 end - offset,
                 inputs.p_supply,
-                inputs.f_ext,
+                inputs.load,
                 spool,
                 &mut self.memory,
             )?;
@@ -100,8 +99,8 @@ impl DrivenCylinder {
     /// piston accelerates, no flow needs evaluating.
     fn steady(&self, params: &CylinderParams, x_s: f64, inputs: &HeldInputs) -> bool {
         let state = &self.state;
-        settled(net_force(params, state, inputs.f_ext)[0] / params.mass, cylinder::V) && {
-            let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.f_ext);
+        settled(cylinder::acceleration(params, state, inputs.load), cylinder::V) && {
+            let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.load);
             settled(d[cylinder::PA], cylinder::PA) && settled(d[cylinder::PB], cylinder::PB)
         }
     }

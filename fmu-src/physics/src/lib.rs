@@ -33,6 +33,7 @@ mod params;
 mod retune;
 #[cfg(feature = "whole-model")]
 pub mod rhs;
+mod rod_port;
 mod root_finding;
 mod rosenbrock;
 mod slew_end;
@@ -41,9 +42,10 @@ mod valve;
 
 pub use params::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
-    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, SolverMethod, ValveParams,
+    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, RodPort, SolverMethod, ValveParams,
     VALVE_RATED_CURRENT,
 };
+pub use rod_port::RATE_PROBE;
 
 use actuator::Actuator;
 use augmented_state::{Mat, Vector, I, I_CMD, ONE, RAIL, U, UI, XF, XS};
@@ -211,10 +213,13 @@ pub struct Physics {
     /// Inputs and step size (bits) of the last step if it left the state as it was, bit
     /// for bit, with no clock running: the same step again changes nothing (a pure cache).
     resting: Option<RestKey>,
+    /// The force on the rod averaged over the last step (an output, carried across a saved
+    /// state by the value array, so not part of the state bytes).
+    rod_force_mean: f64,
 }
 
 /// Inputs and step size as bits (see `Physics::resting`).
-type RestKey = [u64; 7];
+type RestKey = [u64; 10];
 
 /// Inputs held over one step, as the equations use them.
 #[derive(Clone, Copy)]
@@ -222,7 +227,9 @@ struct HeldInputs {
     i_ref: f64,
     rail: f64,
     p_supply: f64,
-    f_ext: f64,
+    /// The load on the rod: F_ext (N) with the force port, the host's acceleration of the
+    /// rod (m/s2) with the motion port.
+    load: f64,
     /// Reference of the outer loop (Q_ref or x_ref).
     reference: f64,
 }
@@ -238,7 +245,10 @@ impl HeldInputs {
             i_ref: inputs.i_ref,
             rail: driver::rail(c, inputs.v_supply),
             p_supply: inputs.p_supply,
-            f_ext: inputs.f_ext,
+            load: match c.cylinder.port {
+                RodPort::Force => inputs.f_ext,
+                RodPort::Motion => inputs.a_rod,
+            },
             reference,
         }
     }
@@ -250,7 +260,8 @@ impl Physics {
     pub fn start(params: &Params, inputs: &Inputs, start_time: f64) -> Result<Physics, String> {
         let actuator = Actuator::start(params, inputs, start_time)?;
         let integrator = ChosenIntegrator::new(params.solver_method, &actuator);
-        Ok(Physics { actuator, integrator, resting: None })
+        let rod_force_mean = actuator.rod_force();
+        Ok(Physics { actuator, integrator, resting: None, rod_force_mean })
     }
 
     /// Builds ahead the propagators that a first step of `step` seconds with these inputs
@@ -277,7 +288,9 @@ impl Physics {
 
     /// The outputs at the current state.
     pub fn outputs(&self) -> Outputs {
-        self.actuator.outputs()
+        let mut out = self.actuator.outputs();
+        out.f_rod = self.rod_force_mean;
+        out
     }
 }
 
@@ -299,7 +312,9 @@ impl Physics {
         let c = &self.actuator.params.cylinder;
         c.check_supply(inputs.p_supply)?;
         let relief_before = cylinder::relief_open(c, &self.actuator.cylinder.state);
+        let force_before = self.actuator.take_rod_motion(inputs)?;
         let mut events = self.advance(inputs, t_start, step)?;
+        self.rod_force_mean = 0.5 * (force_before + self.actuator.rod_force());
         let a = &self.actuator;
         let relief_after = cylinder::relief_open(&a.params.cylinder, &a.cylinder.state);
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);

@@ -27,6 +27,21 @@ impl DriverKind {
     ];
 }
 
+/// How the rod meets its load.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RodPort {
+    /// The model moves the load mass under an external force.
+    Force,
+    /// The host (a multibody simulator) owns the moving mass and prescribes the rod's
+    /// motion; the model returns the force on the rod.
+    Motion,
+}
+
+impl RodPort {
+    /// Every port, in the order of their codes.
+    pub const ALL: [RodPort; 2] = [RodPort::Force, RodPort::Motion];
+}
+
 /// Which command drives the coil current.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ControlMode {
@@ -122,7 +137,9 @@ pub struct CylinderLoadParams {
     pub rod: f64,
     /// Full stroke (m); x runs from -stroke/2 to +stroke/2.
     pub stroke: f64,
-    /// Moving mass: piston, rod and load (kg).
+    /// How the rod meets its load.
+    pub port: RodPort,
+    /// Moving mass: piston, rod and load (kg); with the motion port the host's.
     pub mass: f64,
     /// Effective bulk modulus of oil, hoses and walls (Pa).
     pub beta: f64,
@@ -196,6 +213,12 @@ pub struct Inputs {
     pub f_ext: f64,
     pub q_ref: f64,
     pub x_ref: f64,
+    /// With the motion port: the rod's position (m, 0 = mid-stroke), velocity (m/s) and
+    /// acceleration (m/s2, the host's input derivative of `v_rod`; 0 if it gives none) at
+    /// the communication point.
+    pub x_rod: f64,
+    pub v_rod: f64,
+    pub a_rod: f64,
 }
 
 /// Outputs at the current state.
@@ -214,6 +237,12 @@ pub struct Outputs {
     pub x_piston: f64,
     pub v_piston: f64,
     pub f_hydraulic: f64,
+    /// The force of the actuator on the rod in +x (hydraulic force, friction and end stops):
+    /// its mean over the last step (N).
+    pub f_rod: f64,
+    /// Its local stiffness and damping at the step's end (N/m, N s/m).
+    pub df_rod_dx: f64,
+    pub df_rod_dv: f64,
 }
 
 impl Params {
@@ -252,6 +281,7 @@ impl Params {
             bore: 0.016,
             rod: 0.010,
             stroke: 0.080,
+            port: RodPort::Force,
             mass: 5.0,
             beta: 1.0e9,
             v_dead: 2.0e-6,
@@ -292,5 +322,8 @@ impl Inputs {
         f_ext: 0.0,
         q_ref: 0.0,
         x_ref: 0.0,
+        x_rod: 0.0,
+        v_rod: 0.0,
+        a_rod: 0.0,
     };
 }

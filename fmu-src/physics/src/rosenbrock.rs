@@ -217,7 +217,7 @@ pub(crate) fn advance(
     state: &mut CylinderState,
     h: f64,
     p_supply: f64,
-    f_ext: f64,
+    load: f64,
     x_s: impl Fn(f64) -> f64,
     memory: &mut RosenbrockMemory,
 ) -> Result<Stats, String> {
@@ -235,7 +235,7 @@ pub(crate) fn advance(
         };
         (value, rate)
     };
-    advance_with_rate(params, state, h, p_supply, f_ext, spool, memory)
+    advance_with_rate(params, state, h, p_supply, load, spool, memory)
 }
 
 /// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`.
@@ -245,7 +245,7 @@ pub(crate) fn advance_with_rate(
     state: &mut CylinderState,
     h: f64,
     p_supply: f64,
-    f_ext: f64,
+    load: f64,
     spool: impl Fn(f64) -> (f64, f64),
     memory: &mut RosenbrockMemory,
 ) -> Result<Stats, String> {
@@ -256,7 +256,7 @@ pub(crate) fn advance_with_rate(
     if !(h.is_finite() && h > 0.0) {
         return Err(format!("hydraulics: step {h} s is not a positive finite number"));
     }
-    let model = Rhs { params, p_supply, f_ext, spool: &spool };
+    let model = Rhs { params, p_supply, load, spool: &spool };
     let mut call = Call {
         h,
         y: state.to_array(),
@@ -517,7 +517,7 @@ fn clamp_to_floor(params: &CylinderParams, y: &mut Vec4, stats: &mut Stats) {
 struct Rhs<'a, S: Fn(f64) -> (f64, f64)> {
     params: &'a CylinderParams,
     p_supply: f64,
-    f_ext: f64,
+    load: f64,
     spool: &'a S,
 }
 
@@ -529,7 +529,7 @@ impl<S: Fn(f64) -> (f64, f64)> Rhs<'_, S> {
             &CylinderState::from_array(y),
             (self.spool)(tau).0,
             self.p_supply,
-            self.f_ext,
+            self.load,
         )
     }
 
@@ -538,7 +538,7 @@ impl<S: Fn(f64) -> (f64, f64)> Rhs<'_, S> {
         stats.function_evaluations += 1;
         stats.jacobian_evaluations += 1;
         let (x_s, rate) = (self.spool)(tau);
-        let (f0, jac, f_xs) = linearise(self.params, y, x_s, self.p_supply, self.f_ext);
+        let (f0, jac, f_xs) = linearise(self.params, y, x_s, self.p_supply, self.load);
         Linearisation { f0, jac, f_t: f_xs.map(|d| d * rate) }
     }
 }

@@ -217,6 +217,76 @@ impl<M: ModelContract> Instance<M> {
         }
     }
 
+    /// `fmi2SetRealInputDerivatives`: all references checked first (Real inputs, settable
+    /// now), then the derivatives set all-or-nothing.
+    ///
+    /// # Safety
+    /// Array contracts of [`Instance::slice`].
+    pub(crate) unsafe fn set_input_derivatives(
+        &mut self,
+        vrs: *const u32,
+        n_vr: usize,
+        orders: *const c_int,
+        values: *const f64,
+    ) -> Result<Status, Status> {
+        // SAFETY: forwarded array contracts.
+        let (vrs, orders, values) = unsafe {
+            (
+                self.slice("valueReferences", vrs, n_vr)?,
+                self.slice("order", orders, n_vr)?,
+                self.slice("value", values, n_vr)?,
+            )
+        };
+        for &vr in vrs {
+            let index = self.resolve::<Real2>(vr)?;
+            self.check_settable(index)?;
+        }
+        let mut model = self.model.clone();
+        for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
+            if let Err(e) = model.set_input_derivative(vr as usize, order, value) {
+                return self.error(&e);
+            }
+        }
+        self.model = model;
+        Ok(Status::OK)
+    }
+
+    /// `fmi2GetRealOutputDerivatives` / `fmi3GetOutputDerivatives`: the derivatives of
+    /// real outputs at the current communication point.
+    ///
+    /// # Safety
+    /// Array contracts of [`Instance::slice`] / [`Instance::slice_mut`].
+    pub(crate) unsafe fn get_output_derivatives<A: Access>(
+        &self,
+        vrs: *const u32,
+        n_vr: usize,
+        orders: *const c_int,
+        values: *mut f64,
+        n_values: usize,
+    ) -> Result<Status, Status> {
+        if n_values != n_vr {
+            return self.error(&format!(
+                "nValues = {n_values} but the {n_vr} value references (all scalars) need {n_vr}"
+            ));
+        }
+        // SAFETY: forwarded array contracts.
+        let (vrs, orders, out) = unsafe {
+            (
+                self.slice("valueReferences", vrs, n_vr)?,
+                self.slice("orders", orders, n_vr)?,
+                self.slice_mut("values", values, n_values)?,
+            )
+        };
+        for ((&vr, &order), slot) in vrs.iter().zip(orders).zip(out.iter_mut()) {
+            let index = self.resolve::<A>(vr)?;
+            *slot = match self.model.output_derivative(index, order) {
+                Ok(value) => value,
+                Err(e) => return self.error(&e),
+            };
+        }
+        Ok(Status::OK)
+    }
+
     /// Get/Set of a type with no variables (strings, binaries, clocks): only `n_vr = 0`
     /// succeeds; every reference is refused as unknown or of another type.
     ///
