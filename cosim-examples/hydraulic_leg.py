@@ -53,26 +53,7 @@ def mjcf() -> str:
     hip_base, hip_end = robot.cylinder_sites("hip_cyl", LEVERS[0], "y", side=-0.05)
     knee_base, knee_end = robot.cylinder_sites("knee_cyl", LEVERS[1], "y", joint_pos=(0, 0, -L1), side=-0.045)
     return f"""
-<mujoco model="hydraulic_leg">
-  <compiler angle="radian"/>
-  <option timestep="1e-4" integrator="Euler"/>
-  <visual><global offwidth="800" offheight="800"/><quality shadowsize="2048"/></visual>
-  <asset>
-    <texture name="grid" type="2d" builtin="checker" rgb1=".82 .84 .86" rgb2=".70 .72 .75"
-             width="256" height="256"/>
-    <material name="grid" texture="grid" texrepeat="8 8" reflectance="0"/>
-    <texture name="sky" type="skybox" builtin="gradient" rgb1=".95 .97 1" rgb2=".75 .8 .9"
-             width="256" height="256"/>
-  </asset>
-  <default>
-    <joint armature="0.002" damping="0.05"/>
-    <geom contype="0" conaffinity="0"/>
-    <default class="link"><geom rgba=".25 .45 .7 1"/></default>
-  </default>
-  <worldbody>
-    <light pos="0.5 -1.5 2.5" dir="-0.2 0.6 -1" diffuse=".8 .8 .8" castshadow="true"/>
-    <geom name="floor" type="plane" size="2 2 0.05" material="grid" contype="1" conaffinity="1"
-          friction="1 0.005 0.0001" solref="0.004 1"/>
+{robot.scene_head("hydraulic_leg", texrepeat=8, light="0.5 -1.5 2.5", light_dir="-0.2 0.6 -1", floor=2)}
     <geom name="rail" type="cylinder" fromto="-0.16 0.06 0 -0.16 0.06 1.1" size="0.012"
           rgba=".5 .5 .5 1"/>
     <body name="trunk" pos="0 0 0">

@@ -112,26 +112,7 @@ def mjcf() -> str:
     legs = [_leg_xml(g) for g in GEOMETRY]
     tendons = "\n    ".join(robot.cylinder_tendon(f"{j}_cyl") for j in JOINTS)
     return f"""
-<mujoco model="hydraulic_quadruped">
-  <compiler angle="radian"/>
-  <option timestep="1e-4" integrator="Euler"/>
-  <visual><global offwidth="800" offheight="800"/><quality shadowsize="2048"/></visual>
-  <asset>
-    <texture name="grid" type="2d" builtin="checker" rgb1=".82 .84 .86" rgb2=".70 .72 .75"
-             width="256" height="256"/>
-    <material name="grid" texture="grid" texrepeat="10 10" reflectance="0"/>
-    <texture name="sky" type="skybox" builtin="gradient" rgb1=".95 .97 1" rgb2=".75 .8 .9"
-             width="256" height="256"/>
-  </asset>
-  <default>
-    <joint armature="0.002" damping="0.05"/>
-    <geom contype="0" conaffinity="0"/>
-    <default class="link"><geom rgba=".25 .45 .7 1"/></default>
-  </default>
-  <worldbody>
-    <light pos="1 -2 3" dir="-0.3 0.6 -1" diffuse=".8 .8 .8" castshadow="true"/>
-    <geom name="floor" type="plane" size="4 4 0.05" material="grid" contype="1" conaffinity="1"
-          friction="1 0.005 0.0001" solref="0.004 1"/>
+{robot.scene_head("hydraulic_quadruped", texrepeat=10, light="1 -2 3", light_dir="-0.3 0.6 -1", floor=4)}
     <body name="trunk" pos="0 0 {H_CROUCH}">
       <freejoint name="base"/>
       <geom name="trunk" type="box" size="0.44 0.13 0.07" mass="{M_TRUNK}" contype="1" conaffinity="1"

@@ -708,3 +708,28 @@ def save_strip(images: Sequence[np.ndarray], labels: Sequence[str], out) -> None
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=100)
     plt.close(fig)
+
+
+def scene_head(name: str, texrepeat: int, light: str, light_dir: str, floor: float) -> str:
+    """The MJCF both robots open with: compiler, the 1e-4 s Euler step of the coupling
+    loop, the look (checker floor, sky, one light) and the floor they stand on."""
+    return f"""<mujoco model="{name}">
+  <compiler angle="radian"/>
+  <option timestep="1e-4" integrator="Euler"/>
+  <visual><global offwidth="800" offheight="800"/><quality shadowsize="2048"/></visual>
+  <asset>
+    <texture name="grid" type="2d" builtin="checker" rgb1=".82 .84 .86" rgb2=".70 .72 .75"
+             width="256" height="256"/>
+    <material name="grid" texture="grid" texrepeat="{texrepeat} {texrepeat}" reflectance="0"/>
+    <texture name="sky" type="skybox" builtin="gradient" rgb1=".95 .97 1" rgb2=".75 .8 .9"
+             width="256" height="256"/>
+  </asset>
+  <default>
+    <joint armature="0.002" damping="0.05"/>
+    <geom contype="0" conaffinity="0"/>
+    <default class="link"><geom rgba=".25 .45 .7 1"/></default>
+  </default>
+  <worldbody>
+    <light pos="{light}" dir="{light_dir}" diffuse=".8 .8 .8" castshadow="true"/>
+    <geom name="floor" type="plane" size="{floor} {floor} 0.05" material="grid" contype="1" conaffinity="1"
+          friction="1 0.005 0.0001" solref="0.004 1"/>"""
