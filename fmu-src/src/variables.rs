@@ -200,12 +200,23 @@ pub const ROD_PORT_TYPE: Enumeration = Enumeration {
     ],
 };
 
-pub const ENUMERATIONS: &[Enumeration] = &[DRIVER_TYPE, CONTROL_MODE_TYPE, ROD_PORT_TYPE];
+/// The integrators, in the order of [`SolverMethod::ALL`].
+pub const SOLVER_METHOD_TYPE: Enumeration = Enumeration {
+    name: "SolverMethod",
+    description: "The integrator between time events",
+    items: &[
+        ("exact", "driver, coil and valve exact, the cylinder by adaptive Rosenbrock: results independent of the communication step"),
+        ("fixed_cost", "work fixed by the step size for real-time rigs: internal steps of at most 25 us, the cylinder by ROS2 (docs/solvers.md)"),
+    ],
+};
+
+pub const ENUMERATIONS: &[Enumeration] =
+    &[DRIVER_TYPE, CONTROL_MODE_TYPE, ROD_PORT_TYPE, SOLVER_METHOD_TYPE];
 
 use Causality::*;
 use Variability::*;
 
-use crate::physics::{ControlMode, DriverKind, Inputs, Outputs, Params, RodPort};
+use crate::physics::{ControlMode, DriverKind, Inputs, Outputs, Params, RodPort, SolverMethod};
 
 /// A Boolean or enumeration field, stored in the value array as its integer value.
 pub trait Coded: Sized {
@@ -238,7 +249,12 @@ macro_rules! coded_enumeration {
     )*};
 }
 
-coded_enumeration!(DriverKind => "driver", ControlMode => "control_mode", RodPort => "cylinder.port");
+coded_enumeration!(
+    DriverKind => "driver",
+    ControlMode => "control_mode",
+    RodPort => "cylinder.port",
+    SolverMethod => "solver.method"
+);
 
 const fn real(
     name: &'static str,
@@ -610,6 +626,9 @@ variable_table! {
     F_ROD => output[f_rod] real: output("F_rod", "N", None, "Force of the actuator on the rod in +x (hydraulic force, friction, end stops): its mean over the last step"),
     DF_ROD_DX => output[df_rod_dx] real: output("dF_rod_dx", "N/m", None, "Local stiffness of F_rod to the rod position at the step's end (oil columns and end stops)"),
     DF_ROD_DV => output[df_rod_dv] real: output("dF_rod_dv", "N.s/m", None, "Local damping of F_rod to the rod velocity at the step's end (friction and end stops)"),
+    // The integrator (appended; docs/solvers.md): exact for design studies and the paper's
+    // figures, fixed_cost for real-time rigs and long robot runs.
+    SOLVER_METHOD => param[solver_method] coded: enumeration("solver.method", &SOLVER_METHOD_TYPE, "Integrator: exact (results independent of the communication step) or fixed_cost (work fixed by the step size, for real-time rigs)"),
 }
 
 /// Index of the variable with this name.
@@ -676,7 +695,7 @@ mod tests {
         }
         assert_eq!(VARIABLES[vr::COIL_K_B].name, "coil.K_b");
         assert_eq!(VARIABLES[vr::POSITION_KD].name, "position.Kd");
-        assert_eq!(N_VARIABLES, 86);
+        assert_eq!(N_VARIABLES, 87);
     }
 
     /// Users' scripts and saved states hold value references: every variable keeps its row.
@@ -770,6 +789,7 @@ mod tests {
             "F_rod",
             "dF_rod_dx",
             "dF_rod_dv",
+            "solver.method",
         ];
         assert_eq!(names[..pinned.len()], pinned);
     }

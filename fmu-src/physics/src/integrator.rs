@@ -34,6 +34,7 @@
 
 use super::actuator::Actuator;
 use super::exact_integrator::ExactIntegrator;
+use super::fixed_cost::FixedCostIntegrator;
 use super::{HeldInputs, SolverMethod, StepEvents, Work};
 
 /// A stretch of a communication step without time events.
@@ -83,6 +84,7 @@ pub(crate) trait Integrator {
 #[derive(Clone)]
 pub(crate) enum ChosenIntegrator {
     Exact(ExactIntegrator),
+    FixedCost(FixedCostIntegrator),
 }
 
 impl ChosenIntegrator {
@@ -90,6 +92,9 @@ impl ChosenIntegrator {
     pub(crate) fn new(method: SolverMethod, actuator: &Actuator) -> ChosenIntegrator {
         match method {
             SolverMethod::Exact => ChosenIntegrator::Exact(ExactIntegrator::new(actuator)),
+            SolverMethod::FixedCost => {
+                ChosenIntegrator::FixedCost(FixedCostIntegrator::new(actuator))
+            }
         }
     }
 
@@ -97,6 +102,7 @@ impl ChosenIntegrator {
     pub(crate) fn method(&self) -> SolverMethod {
         match self {
             ChosenIntegrator::Exact(_) => SolverMethod::Exact,
+            ChosenIntegrator::FixedCost(_) => SolverMethod::FixedCost,
         }
     }
 }
@@ -112,12 +118,14 @@ impl Integrator for ChosenIntegrator {
     ) -> Result<(), String> {
         match self {
             ChosenIntegrator::Exact(exact) => exact.evolve(actuator, segment, inputs, events),
+            ChosenIntegrator::FixedCost(fixed) => fixed.evolve(actuator, segment, inputs, events),
         }
     }
 
     fn prepare(&mut self, actuator: &Actuator, step: f64) {
         match self {
             ChosenIntegrator::Exact(exact) => exact.prepare(actuator, step),
+            ChosenIntegrator::FixedCost(fixed) => fixed.prepare(actuator, step),
         }
     }
 
@@ -126,18 +134,25 @@ impl Integrator for ChosenIntegrator {
             (ChosenIntegrator::Exact(exact), ChosenIntegrator::Exact(probe)) => {
                 exact.adopt_prepared(probe)
             }
+            (ChosenIntegrator::FixedCost(fixed), ChosenIntegrator::FixedCost(probe)) => {
+                fixed.adopt_prepared(probe)
+            }
+            // A probe of another method built nothing this one uses.
+            _ => {}
         }
     }
 
     fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool) {
         match self {
             ChosenIntegrator::Exact(exact) => exact.retuned(actuator, systems_rebuilt),
+            ChosenIntegrator::FixedCost(fixed) => fixed.retuned(actuator, systems_rebuilt),
         }
     }
 
     fn count_work(&self, work: &mut Work) {
         match self {
             ChosenIntegrator::Exact(exact) => exact.count_work(work),
+            ChosenIntegrator::FixedCost(fixed) => fixed.count_work(work),
         }
     }
 }

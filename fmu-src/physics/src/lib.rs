@@ -23,6 +23,7 @@ mod cylinder_terms;
 mod driven_cylinder;
 mod driver;
 mod exact_integrator;
+mod fixed_cost;
 mod hbridge;
 mod integrator;
 mod lu4;

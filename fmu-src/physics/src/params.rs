@@ -65,11 +65,16 @@ pub enum SolverMethod {
     /// results that do not depend on the communication step; work that follows what
     /// happens in it.
     Exact,
+    /// Work fixed by the step size for real-time rigs: driver, coil and valve by
+    /// precomputed propagators over internal steps of at most 25 us, mode changes at
+    /// their boundaries, the cylinder by a linearly implicit L-stable Rosenbrock method
+    /// (ROS2) without error control (docs/solvers.md).
+    FixedCost,
 }
 
 impl SolverMethod {
     /// Every method, in the order of their codes.
-    pub const ALL: [SolverMethod; 1] = [SolverMethod::Exact];
+    pub const ALL: [SolverMethod; 2] = [SolverMethod::Exact, SolverMethod::FixedCost];
 }
 
 /// A continuous PI current loop with a slew-rate limited output (op-amp or industrial).

@@ -1,0 +1,171 @@
+//! The fixed-cost integrator behind the seam ([`super::integrator`]): work fixed by the
+//! segment's length, for real-time rigs. Each segment is cut into `n` equal internal steps,
+//! `n = ceil(span / H_INTERNAL)` (at least the exact propagator's own count): a loop period
+//! of 50 us gives two steps of 25 us, and where the internal step divides the
+//! communication step the cuts do not depend on it. Per internal step:
+//! * driver, coil and valve go by the mode's propagator over the step (cached per mode
+//!   and span, built once), then the driver mode and valve stops are chosen again for the
+//!   state reached ([`Actuator::settle`]): mode changes fall on step boundaries, with no
+//!   event search;
+//! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one step of ROS2 (Verwer's
+//!   L-stable two-stage Rosenbrock method of order 2, order 2 for any matrix in W, so the
+//!   spool's time dependence needs no df/dt term) with the analytic Jacobian and one 4x4
+//!   LU; the spool moves linearly between the step's ends. No error control, no rejection.
+
+use super::actuator::{current_system, Actuator};
+use super::cylinder_jacobian::linearise;
+use super::integrator::{Integrator, Segment};
+use super::lu4::Lu4;
+use super::*;
+
+/// The longest internal step (s): a divisor of the default 50 us loop period.
+pub(crate) const H_INTERNAL: f64 = 25e-6;
+
+/// ROS2's gamma, 1 + 1/sqrt(2): L-stable.
+const GAMMA: f64 = 1.707_106_781_186_547_5;
+
+/// The fixed-cost integrator's own state: the propagators it built (a pure cache).
+#[derive(Clone)]
+pub(crate) struct FixedCostIntegrator {
+    cache: PropagatorCache,
+}
+
+impl FixedCostIntegrator {
+    pub(crate) fn new(_actuator: &Actuator) -> FixedCostIntegrator {
+        FixedCostIntegrator { cache: PropagatorCache::new() }
+    }
+}
+
+/// The propagator cache's name for the actuator's (mode, stops) pair.
+fn propagator_key(actuator: &Actuator) -> usize {
+    actuator.mode.index() + MODES.len() * actuator.stops.code()
+}
+
+impl Integrator for FixedCostIntegrator {
+    fn evolve(
+        &mut self,
+        actuator: &mut Actuator,
+        segment: Segment,
+        inputs: &HeldInputs,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        let n = augmented_state::ceil_count(segment.span / H_INTERNAL).max(1);
+        let h = segment.span / n as f64;
+        for _ in 0..n {
+            let z0 = actuator.z;
+            let mut z1 = self.propagate(actuator, h)?;
+            let before = actuator.mode;
+            actuator.settle(&mut z1);
+            driver::count_switch(events, before, actuator.mode);
+            ros2_step(actuator, (z0[XS], z1[XS]), h, inputs)?;
+            actuator.z = z1;
+        }
+        Ok(())
+    }
+
+    /// The propagators whole segments need (loop periods and communication steps).
+    fn prepare(&mut self, actuator: &Actuator, step: f64) {
+        let c = &actuator.params;
+        let looping = c.loops.mode != ControlMode::Current;
+        for span in [Some(step), looping.then(|| 1.0 / c.loops.f_sample)].into_iter().flatten() {
+            let n = augmented_state::ceil_count(span / H_INTERNAL).max(1);
+            let key = propagator_key(actuator);
+            let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+            let _ = self.cache.get(key, sys, span / n as f64, true, 1);
+        }
+    }
+
+    fn adopt_prepared(&mut self, probe: FixedCostIntegrator) {
+        self.cache = probe.cache;
+    }
+
+    fn retuned(&mut self, _actuator: &Actuator, systems_rebuilt: bool) {
+        if systems_rebuilt {
+            self.cache.clear();
+        }
+    }
+
+    fn count_work(&self, work: &mut Work) {
+        work.exponentials += self.cache.exponentials;
+    }
+}
+
+impl FixedCostIntegrator {
+    /// Driver, coil and valve over one internal step of `h` in the current mode, put on
+    /// its manifold. The H-bridge's switched spans go by Taylor series, as in the exact
+    /// integrator (short and irregular: a series beats an exponential).
+    fn propagate(&mut self, actuator: &Actuator, h: f64) -> Result<Vector, String> {
+        let c = &actuator.params;
+        let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+        let z = &actuator.z;
+        let mut z1 = if actuator.mode == Mode::Switched {
+            let p = Propagator::taylor_only(sys, h, 1);
+            let mut z = *z;
+            for _ in 0..p.substeps {
+                z = p.apply(sys, &z);
+            }
+            z
+        } else {
+            let key = propagator_key(actuator);
+            let p = self.cache.get(key, sys, h, true, 1)?;
+            let mut z = *z;
+            for _ in 0..p.substeps {
+                z = p.apply(sys, &z);
+            }
+            z
+        };
+        driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
+        Ok(z1)
+    }
+}
+
+/// One ROS2 step of the cylinder over `h`, the spool going linearly from `xs.0` to `xs.1`:
+/// `W = I - gamma h J`, `k1 = W^-1 f(y0, t0)`, `k2 = W^-1 (f(y0 + h k1, t0 + h) - 2 k1)`,
+/// `y1 = y0 + h (3 k1 + k2) / 2`.
+fn ros2_step(
+    actuator: &mut Actuator,
+    xs: (f64, f64),
+    h: f64,
+    inputs: &HeldInputs,
+) -> Result<(), String> {
+    let params = &actuator.params.cylinder;
+    let y0 = actuator.cylinder.state.to_array();
+    let (f0, jac, _) = linearise(params, &y0, xs.0, inputs.p_supply, inputs.load);
+    let mut w = jac;
+    for (i, row) in w.iter_mut().enumerate() {
+        for (j, a) in row.iter_mut().enumerate() {
+            *a = f64::from(u8::from(i == j)) - GAMMA * h * *a;
+        }
+    }
+    let lu = Lu4::factor(w).ok_or("the cylinder's Rosenbrock matrix is singular; step refused")?;
+    let k1 = lu.solve(f0);
+    let mut y = y0;
+    for i in 0..4 {
+        y[i] += h * k1[i];
+    }
+    let f1 = cylinder::derivatives(
+        params,
+        &CylinderState::from_array(&y),
+        xs.1,
+        inputs.p_supply,
+        inputs.load,
+    );
+    let mut rhs = f1;
+    for i in 0..4 {
+        rhs[i] -= 2.0 * k1[i];
+    }
+    let k2 = lu.solve(rhs);
+    let mut y1 = y0;
+    for i in 0..4 {
+        y1[i] += 0.5 * h * (3.0 * k1[i] + k2[i]);
+    }
+    if y1.iter().any(|v| !v.is_finite()) {
+        return Err("the cylinder's state is not finite; step refused".into());
+    }
+    actuator.cylinder.state = CylinderState::from_array(&y1);
+    let work = &mut actuator.work;
+    work.steps_accepted += 1;
+    (work.jacobians, work.factorisations) = (work.jacobians + 1, work.factorisations + 1);
+    work.function_evaluations += 1;
+    Ok(())
+}
