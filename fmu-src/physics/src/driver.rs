@@ -179,6 +179,21 @@ pub(crate) fn slew_time(c: &Coefficients, mode: Mode, z: &Vector) -> Option<f64>
     })
 }
 
+/// Takes back what a whole step in `mode` carried the output past the end of that mode: a
+/// slew past its target (the PI law's value clamped to the rails), a linear output past a
+/// rail. A stepper that decides modes only at step boundaries calls it before
+/// [`consistent_mode`], which would otherwise read the overshoot as a slew the other way.
+pub(crate) fn clip_overshoot(c: &Coefficients, z: &mut Vector, mode: Mode) {
+    let vmax = z[RAIL];
+    let target = || dot(&u_lin_row(c), z).clamp(-vmax, vmax);
+    match mode {
+        Mode::SlewUp => z[U] = z[U].min(target()),
+        Mode::SlewDown => z[U] = z[U].max(target()),
+        Mode::Linear => z[U] = z[U].clamp(-vmax, vmax),
+        _ => {}
+    }
+}
+
 /// Puts the algebraic part of the state on the mode's manifold (after every propagation
 /// too, so held values stay exact rather than within rounding of exp()).
 pub(crate) fn project_onto(c: &Coefficients, hbridge: &HBridgeState, z: &mut Vector, mode: Mode) {

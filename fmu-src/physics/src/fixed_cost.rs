@@ -21,6 +21,9 @@ use super::*;
 /// The longest internal step (s): a divisor of the default 50 us loop period.
 pub(crate) const H_INTERNAL: f64 = 25e-6;
 
+/// Mode changes placed inside one internal step at most; more are decided at its end.
+const MAX_SWITCHES: usize = 3;
+
 /// ROS2's gamma, 1 + 1/sqrt(2): L-stable.
 const GAMMA: f64 = 1.707_106_781_186_547_5;
 
@@ -52,13 +55,9 @@ impl Integrator for FixedCostIntegrator {
         let n = augmented_state::ceil_count(segment.span / H_INTERNAL).max(1);
         let h = segment.span / n as f64;
         for _ in 0..n {
-            let z0 = actuator.z;
-            let mut z1 = self.propagate(actuator, h)?;
-            let before = actuator.mode;
-            actuator.settle(&mut z1);
-            driver::count_switch(events, before, actuator.mode);
-            ros2_step(actuator, (z0[XS], z1[XS]), h, inputs)?;
-            actuator.z = z1;
+            let xs0 = actuator.z[XS];
+            self.driver_and_valve(actuator, h, events)?;
+            ros2_step(actuator, (xs0, actuator.z[XS]), h, inputs)?;
         }
         Ok(())
     }
@@ -91,10 +90,45 @@ impl Integrator for FixedCostIntegrator {
 }
 
 impl FixedCostIntegrator {
+    /// Driver, coil and valve over one internal step of `h`. A guard of the mode that
+    /// crossed inside it is placed by linear interpolation of its values at the ends (no
+    /// iteration: exact for the slews' straight lines), the state propagated there, the
+    /// mode changed and the rest of the step taken in the new one; after
+    /// [`MAX_SWITCHES`] of those the mode is decided at the step's end alone.
+    fn driver_and_valve(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        let mut left = h;
+        for switches in 0..=MAX_SWITCHES {
+            let mut z1 = self.propagate(actuator, left, left == h)?;
+            let crossing = (switches < MAX_SWITCHES)
+                .then(|| first_crossing(actuator, &z1))
+                .flatten()
+                .filter(|&fraction| fraction < 1.0);
+            if let Some(fraction) = crossing {
+                let tau = left * fraction;
+                z1 = self.propagate(actuator, tau, false)?;
+                left -= tau;
+            }
+            let before = actuator.mode;
+            driver::clip_overshoot(&actuator.params, &mut z1, before);
+            actuator.settle(&mut z1);
+            driver::count_switch(events, before, actuator.mode);
+            actuator.z = z1;
+            if crossing.is_none() || left <= 0.0 {
+                break;
+            }
+        }
+        Ok(())
+    }
+
     /// Driver, coil and valve over one internal step of `h` in the current mode, put on
     /// its manifold. The H-bridge's switched spans go by Taylor series, as in the exact
     /// integrator (short and irregular: a series beats an exponential).
-    fn propagate(&mut self, actuator: &Actuator, h: f64) -> Result<Vector, String> {
+    fn propagate(&mut self, actuator: &Actuator, h: f64, nominal: bool) -> Result<Vector, String> {
         let c = &actuator.params;
         let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
         let z = &actuator.z;
@@ -107,7 +141,7 @@ impl FixedCostIntegrator {
             z
         } else {
             let key = propagator_key(actuator);
-            let p = self.cache.get(key, sys, h, true, 1)?;
+            let p = self.cache.get(key, sys, h, nominal, 1)?;
             let mut z = *z;
             for _ in 0..p.substeps {
                 z = p.apply(sys, &z);
@@ -117,6 +151,19 @@ impl FixedCostIntegrator {
         driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
         Ok(z1)
     }
+}
+
+/// Where in a propagation from the actuator's state to `z1` the first of its mode's guards
+/// crossed zero upwards, as a fraction of the span (linear interpolation); `None` if none did.
+fn first_crossing(actuator: &Actuator, z1: &Vector) -> Option<f64> {
+    let c = &actuator.params;
+    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    (0..sys.n_guards)
+        .filter_map(|g| {
+            let (v0, v1) = (sys.guard_value(g, &actuator.z), sys.guard_value(g, z1));
+            (v0 <= 0.0 && v1 > 0.0).then(|| v0 / (v0 - v1))
+        })
+        .reduce(f64::min)
 }
 
 /// One ROS2 step of the cylinder over `h`, the spool going linearly from `xs.0` to `xs.1`:

@@ -51,7 +51,7 @@ pub(crate) struct ModeSystem {
     guard_terms: [usize; MAX_GUARDS],
     /// Bit g: guard g is no line or parabola in time (more than [`CLOSED_FORM_TERMS`]).
     beyond_closed_form: u8,
-    n_guards: usize,
+    pub(crate) n_guards: usize,
     /// Spectral radius of `a` (1/s).
     pub(crate) radius: f64,
     /// Rows of `A` and `A^2` that give the spool's velocity and acceleration from `z`.
@@ -125,7 +125,7 @@ impl ModeSystem {
     }
 
     /// Guard `g`'s value at `z`.
-    fn guard_value(&self, g: usize, z: &Vector) -> f64 {
+    pub(crate) fn guard_value(&self, g: usize, z: &Vector) -> f64 {
         dot(&self.guards[g], z)
     }
 
