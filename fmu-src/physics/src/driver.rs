@@ -183,10 +183,13 @@ pub(crate) fn slew_time(c: &Coefficients, mode: Mode, z: &Vector) -> Option<f64>
 /// slew past its target (the PI law's value clamped to the rails), a linear output past a
 /// rail. A stepper that decides modes only at step boundaries calls it before
 /// [`consistent_mode`], which would otherwise read the overshoot as a slew the other way.
-pub(crate) fn clip_overshoot(c: &Coefficients, z: &mut Vector, mode: Mode) {
+/// `ended`: a slew's end was placed here (to within the placement's error, either side): the
+/// output takes its target.
+pub(crate) fn clip_overshoot(c: &Coefficients, z: &mut Vector, mode: Mode, ended: bool) {
     let vmax = z[RAIL];
     let target = || dot(&u_lin_row(c), z).clamp(-vmax, vmax);
     match mode {
+        Mode::SlewUp | Mode::SlewDown if ended => z[U] = target(),
         Mode::SlewUp => z[U] = z[U].min(target()),
         Mode::SlewDown => z[U] = z[U].max(target()),
         Mode::Linear => z[U] = z[U].clamp(-vmax, vmax),

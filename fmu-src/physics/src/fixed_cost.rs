@@ -114,7 +114,7 @@ impl FixedCostIntegrator {
                 left -= tau;
             }
             let before = actuator.mode;
-            driver::clip_overshoot(&actuator.params, &mut z1, before);
+            driver::clip_overshoot(&actuator.params, &mut z1, before, crossing.is_some());
             actuator.settle(&mut z1);
             driver::count_switch(events, before, actuator.mode);
             actuator.z = z1;
@@ -161,7 +161,7 @@ fn first_crossing(actuator: &Actuator, z1: &Vector) -> Option<f64> {
     (0..sys.n_guards)
         .filter_map(|g| {
             let (v0, v1) = (sys.guard_value(g, &actuator.z), sys.guard_value(g, z1));
-            (v0 <= 0.0 && v1 > 0.0).then(|| v0 / (v0 - v1))
+            (v0 < 0.0 && v1 > 0.0).then(|| v0 / (v0 - v1))
         })
         .reduce(f64::min)
 }
