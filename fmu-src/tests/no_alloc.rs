@@ -59,9 +59,12 @@ fn the_counter_counts_this_thread_only() {
 
 #[test]
 fn do_step_does_not_allocate() {
-    for driver in [0.0, 1.0, 2.0, 3.0, 4.0] {
+    // Each driver through each solver.method (0 exact, 1 fixed_cost).
+    for (driver, method) in [0.0, 1.0, 2.0, 3.0, 4.0].into_iter().flat_map(|d| [(d, 0.0), (d, 1.0)])
+    {
         let mut m = Model::new();
         m.set(vr::DRIVER, driver).unwrap();
+        m.set(vr::SOLVER_METHOD, method).unwrap();
         m.initialize().unwrap();
         for (k, i_ref) in [5e-3, -10e-3, 0.0].into_iter().enumerate() {
             m.set(vr::I_REF, i_ref).unwrap();
@@ -70,16 +73,18 @@ fn do_step_does_not_allocate() {
                     m.do_step(m.time(), 1e-4 * (1 + k) as f64 / 3.0).unwrap();
                 }
             });
-            assert_eq!(n, 0, "driver {driver}, i_ref {i_ref}: doStep allocated");
+            assert_eq!(n, 0, "driver {driver}, method {method}, i_ref {i_ref}: doStep allocated");
         }
     }
 }
 
 #[test]
 fn steps_after_a_tunable_change_do_not_allocate() {
-    for (driver, gain) in [(2.0, vr::DRIVER_KP), (3.0, vr::INDUSTRIAL_KP), (4.0, vr::HBRIDGE_KP)] {
+    let cases = [(2.0, vr::DRIVER_KP), (3.0, vr::INDUSTRIAL_KP), (4.0, vr::HBRIDGE_KP)];
+    for ((driver, gain), method) in cases.into_iter().flat_map(|c| [(c, 0.0), (c, 1.0)]) {
         let mut m = Model::new();
         m.set(vr::DRIVER, driver).unwrap();
+        m.set(vr::SOLVER_METHOD, method).unwrap();
         m.initialize().unwrap();
         m.set(vr::I_REF, 5e-3).unwrap();
         for scale in [0.5, 2.0] {
@@ -91,7 +96,10 @@ fn steps_after_a_tunable_change_do_not_allocate() {
                     m.do_step(m.time(), 1e-4).unwrap();
                 }
             });
-            assert_eq!(n, 0, "driver {driver}: doStep after a tunable change allocated");
+            assert_eq!(
+                n, 0,
+                "driver {driver}, method {method}: doStep after a tunable change allocated"
+            );
         }
     }
 }

@@ -206,6 +206,11 @@ fn ros2_step(
     for i in 0..4 {
         y1[i] += 0.5 * h * (3.0 * k1[i] + k2[i]);
     }
+    // The chambers' bulk modulus fades to zero at the cavitation floor, which the exact
+    // solution never crosses; a step without error control can overshoot it: put back.
+    for p in [cylinder::PA, cylinder::PB] {
+        y1[p] = y1[p].max(params.p_cavitation);
+    }
     if y1.iter().any(|v| !v.is_finite()) {
         return Err("the cylinder's state is not finite; step refused".into());
     }

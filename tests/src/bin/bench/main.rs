@@ -42,6 +42,8 @@ use workloads::{Signal, Workload, I_AMPLITUDE};
 /// An output further than this fraction of its range from the reference (and further than
 /// the trajectory's conditioning explains, see `measure`) is an error.
 const DEVIATION_LIMIT: f64 = 1e-2;
+/// The same for `solver.method = fixed_cost`: bounded and stable (docs/solvers.md).
+const FIXED_COST_DEVIATION_LIMIT: f64 = 0.2;
 /// The peer's default tolerance: near the FMU's accuracy (see `docs/benchmark.md`).
 const PEER_RTOL: f64 = 1e-10;
 /// At [`PEER_RTOL`] or tighter, the peer further than this fraction of an output's range
@@ -60,6 +62,8 @@ struct Options {
     steps: Vec<f64>,
     versions: Vec<Version>,
     only: Option<String>,
+    /// `solver.method` codes to run every workload with (`--method`).
+    methods: Vec<i64>,
     repeat: usize,
     peer_rtol: f64,
     reference_rtol: f64,
@@ -92,6 +96,7 @@ fn parse() -> Result<Options, String> {
         steps: vec![1e-3, 1e-4, 1e-5],
         versions: vec![Version::Fmi2, Version::Fmi3],
         only: None,
+        methods: vec![workloads::EXACT, workloads::FIXED_COST],
         repeat: 3,
         peer_rtol: PEER_RTOL,
         reference_rtol: reference::REFERENCE_RTOL,
@@ -126,6 +131,14 @@ fn parse() -> Result<Options, String> {
                     Some("3") => vec![Version::Fmi3],
                     Some("both") => vec![Version::Fmi2, Version::Fmi3],
                     _ => return Err("--fmi takes 2, 3 or both".into()),
+                }
+            }
+            "--method" => {
+                o.methods = match args.next().as_deref() {
+                    Some("exact") => vec![workloads::EXACT],
+                    Some("fixed_cost") => vec![workloads::FIXED_COST],
+                    Some("both") => vec![workloads::EXACT, workloads::FIXED_COST],
+                    _ => return Err("--method needs exact, fixed_cost or both".into()),
                 }
             }
             "--only" => o.only = Some(args.next().ok_or("--only needs a name")?),
@@ -302,8 +315,13 @@ impl<'a> Case<'a> {
         // reference moved by its spread for a 10x tighter tolerance, so an FMU that many
         // times looser may move that much more (hbridge_square_100Hz over 0.5 s: spread
         // 8.8e-4, the FMU at 1e-7 5.3e-1 off).
-        if dev.0.is_nan()
-            || (dev.0 > DEVIATION_LIMIT && dev.0 > 10.0 * self.looser * self.reference_spread.0)
+        // fixed_cost has no tolerance to loosen: its error is its internal step's.
+        let limit = if self.w.solver_method == workloads::FIXED_COST {
+            FIXED_COST_DEVIATION_LIMIT
+        } else {
+            DEVIATION_LIMIT
+        };
+        if dev.0.is_nan() || (dev.0 > limit && dev.0 > 10.0 * self.looser * self.reference_spread.0)
         {
             let (k, value, expected) = reference::worst_point(trace, &self.reference, dev.1);
             problems.push(format!(
@@ -490,20 +508,38 @@ fn measure_all(o: &Options, fmus: &[Fmu], cvode: Option<&peer::Api>) -> Results 
             if !selected(o, &w, h) {
                 continue;
             }
-            match measure(o, fmus, cvode, &w, h, &mut results.problems) {
-                Ok(rows) => {
-                    rows.iter().for_each(report::print);
-                    results.slowest.extend(rows.iter().filter_map(report::slowest_steps));
-                    results.targets.extend(rows.iter().filter_map(report::targets));
-                }
-                Err(e) => {
-                    eprintln!("bench: {}, h = {h}: {e}", w.name);
-                    results.failed = true;
-                }
+            for &method in &o.methods {
+                measure_method(o, (fmus, cvode), &w.with_method(method), h, &mut results);
             }
         }
     }
     results
+}
+
+/// One workload through one method at `h`: its rows printed and their lines kept.
+fn measure_method(
+    o: &Options,
+    (fmus, cvode): (&[Fmu], Option<&peer::Api>),
+    w: &Workload,
+    h: f64,
+    results: &mut Results,
+) {
+    match measure(o, fmus, cvode, w, h, &mut results.problems) {
+        Ok(rows) => {
+            rows.iter().for_each(report::print);
+            results.slowest.extend(rows.iter().filter_map(report::slowest_steps));
+            let current_mode = w.control_mode == workloads::CURRENT;
+            let verdict = |row| match w.solver_method {
+                workloads::FIXED_COST => report::fixed_cost_targets(row, current_mode),
+                _ => report::targets(row),
+            };
+            results.targets.extend(rows.iter().filter_map(verdict));
+        }
+        Err(e) => {
+            eprintln!("bench: {}, h = {h}: {e}", w.name);
+            results.failed = true;
+        }
+    }
 }
 
 /// Whether `--only` names the workload, and the quadruped at `h` unless `--all-h`.
@@ -524,6 +560,7 @@ fn print_closing(o: &Options, results: &Results) {
     if !results.targets.is_empty() {
         println!();
         println!("{}", report::targets_header(o.t_end));
+        println!("{}", report::FIXED_COST_TARGETS);
         results.targets.iter().for_each(|line| println!("{line}"));
     }
 }

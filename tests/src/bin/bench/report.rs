@@ -266,6 +266,49 @@ Printed, never asserted: speed depends on the machine.",
     )
 }
 
+/// `solver.method = fixed_cost`'s targets at [`TARGET_STEP`] (docs/solvers.md): RTFcpu per
+/// actuator, the quadruped's in all, the slowest doStep in thread CPU and against the mean,
+/// accuracy against the reference.
+const FC_RTF: f64 = 500.0;
+const FC_RTF_CURRENT: f64 = 1000.0;
+const FC_QUADRUPED_RTF: f64 = 40.0;
+const FC_SLOWEST: f64 = 2e-6;
+const FC_SLOWEST_OVER_MEAN: f64 = 3.0;
+const FC_ACCURACY: f64 = 1e-3;
+
+/// The fixed_cost targets' header.
+pub const FIXED_COST_TARGETS: &str = "fixed_cost rows (/fc): RTFcpu >= 500 per actuator (>= 1000 in current mode, the quadruped >= 40 in
+all), slowest doStep <= 2 us of thread CPU and <= 3x the mean, outputs within 1e-3 of their range
+of the reference (judged on all; the well-conditioned workloads are gait, stand, flow, sines and
+squares up to 20 Hz).";
+
+/// One line of the fixed_cost targets' verdict for `row` (FMI 2 rows at [`TARGET_STEP`]).
+pub fn fixed_cost_targets(row: &Row, current_mode: bool) -> Option<String> {
+    if row.h != TARGET_STEP || row.version != Version::Fmi2 {
+        return None;
+    }
+    let verdict = |met: bool| if met { "met" } else { "NOT met" };
+    let rtf_target = match (row.instances > 1, current_mode) {
+        (true, _) => FC_QUADRUPED_RTF,
+        (false, true) => FC_RTF_CURRENT,
+        (false, false) => FC_RTF,
+    };
+    let rtf =
+        format!("RTF {} ({:.1} of {rtf_target})", verdict(row.rtf_cpu >= rtf_target), row.rtf_cpu);
+    let (max, mean) = (row.step_cpu.max, row.step_cpu.mean);
+    let slowest = format!(
+        "slowest {} ({} us, {:.1}x mean)",
+        verdict(max <= FC_SLOWEST && max <= FC_SLOWEST_OVER_MEAN * mean),
+        us(max),
+        max / mean
+    );
+    let accuracy = match row.deviation {
+        Some((d, _)) => format!("accuracy {} ({d:.1e})", verdict(d <= FC_ACCURACY)),
+        None => "accuracy -".into(),
+    };
+    Some(format!("  {:<22} {rtf}; {slowest}; {accuracy}", row.workload))
+}
+
 /// One line of the targets' verdict for `row`, if it is a row they apply to.
 pub fn targets(row: &Row) -> Option<String> {
     if row.h != TARGET_STEP || row.version != Version::Fmi2 {

@@ -10,7 +10,7 @@ use ehsv_actuator::variables::vr;
 const OPAMP_PI: i64 = 2;
 const HBRIDGE_PID: i64 = 4;
 /// `control_mode` values.
-const CURRENT: i64 = 0;
+pub const CURRENT: i64 = 0;
 const FLOW: i64 = 1;
 const POSITION: i64 = 2;
 
@@ -93,7 +93,13 @@ pub struct Workload {
     pub legs: Vec<Signal>,
     /// `solver.rtol` of every instance (None: the FMU's default).
     pub solver_rtol: Option<f64>,
+    /// `solver.method` of every instance ([`EXACT`] or [`FIXED_COST`]).
+    pub solver_method: i64,
 }
+
+/// `solver.method`'s codes.
+pub const EXACT: i64 = 0;
+pub const FIXED_COST: i64 = 1;
 
 /// Square wave of unit amplitude, +1 over the first half period.
 fn square(f: f64, t: f64) -> f64 {
@@ -140,12 +146,24 @@ impl Workload {
             v_supply,
             legs: vec![s],
             solver_rtol: None,
+            solver_method: EXACT,
         }
     }
 
     /// Enumerations to set before initialisation.
-    pub fn enums(&self) -> [(usize, i64); 2] {
-        [(vr::DRIVER, self.driver), (vr::CONTROL_MODE, self.control_mode)]
+    pub fn enums(&self) -> [(usize, i64); 3] {
+        [
+            (vr::DRIVER, self.driver),
+            (vr::CONTROL_MODE, self.control_mode),
+            (vr::SOLVER_METHOD, self.solver_method),
+        ]
+    }
+
+    /// The same workload through `method`, named after it unless exact.
+    pub fn with_method(&self, method: i64) -> Workload {
+        let name =
+            if method == FIXED_COST { format!("{}/fc", self.name) } else { self.name.clone() };
+        Workload { name, solver_method: method, ..self.clone() }
     }
 
     /// Reals to set before initialisation (the inputs start at 0: every signal starts as a
@@ -196,6 +214,7 @@ pub fn all() -> Vec<Workload> {
         v_supply: 72.0,
         legs: (0..LEGS).map(|l| Signal::Gait(l as f64 * GAIT_PERIOD / LEGS as f64)).collect(),
         solver_rtol: None,
+        solver_method: EXACT,
     });
     w
 }
