@@ -14,6 +14,9 @@ fn method(name: &str) -> (&'static str, f64) {
     ("solver.method", enum_value("SolverMethod", name))
 }
 
+/// The input set before each step, from the time.
+type Input<'a> = dyn Fn(f64) -> (usize, f64) + 'a;
+
 fn sine(hz: f64, amplitude: f64) -> impl Fn(f64) -> f64 {
     move |t| amplitude * (2.0 * std::f64::consts::PI * hz * t).sin()
 }
@@ -81,8 +84,7 @@ fn fixed_cost_follows_exact_on_sines_and_squares() {
         for hz in [2.0, 20.0] {
             let s = sine(hz, 5e-3);
             let sq = |t: f64| (vr::I_REF, if s(t) >= 0.0 { 5e-3 } else { -5e-3 });
-            let runs: [(&str, &dyn Fn(f64) -> (usize, f64)); 2] =
-                [("sine", &|t| (vr::I_REF, s(t))), ("square", &sq)];
+            let runs: [(&str, &Input<'_>); 2] = [("sine", &|t| (vr::I_REF, s(t))), ("square", &sq)];
             for (shape, input) in runs {
                 let e = compare(&[driver(kind)], 0.2, 1e-4, input);
                 println!("{kind} {shape} {hz} Hz: {}", show(&e));
@@ -174,4 +176,17 @@ fn fixed_cost_stays_bounded_on_hard_workloads() {
     let floor = scenario::start(vr::HYDRAULICS_P_CAVITATION);
     let ceiling = scenario::start(vr::RELIEF_P_CRACK) + scenario::start(vr::RELIEF_DP_OVERRIDE);
     assert!(p_max < ceiling && p_min >= floor, "{p_min} {p_max}");
+}
+
+/// A saved fixed_cost instance continues bit for bit from its restored state (the method
+/// is a parameter, saved with the rest; its propagators are a cache).
+#[test]
+fn a_restored_fixed_cost_instance_continues_bit_for_bit() {
+    let s = sine(20.0, 5e-3);
+    let command = |t: f64| (vr::I_REF, s(t));
+    let mut m = model(&[driver("opamp_pi"), method("fixed_cost")]);
+    trace(&mut m, 0.05, 1e-4, &command);
+    let mut restored = Model::from_bytes(&m.to_bytes()).unwrap();
+    assert_eq!(restored.get(vr::SOLVER_METHOD), Some(1.0));
+    assert_eq!(trace(&mut m, 0.05, 1e-4, &command), trace(&mut restored, 0.05, 1e-4, &command));
 }

@@ -221,3 +221,67 @@ fn ros2_step(
     work.function_evaluations += 1;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cylinder::equilibrium;
+
+    /// Why a naive fixed step fails here: with the spool open (0.3 mm) and chamber A near
+    /// the supply pressure (a piston pushing at full command), the port's laminar slope puts
+    /// the chambers' rates at -4e4 to -6e4 1/s (the stiffest, -1.4e5, elsewhere on the
+    /// stroke); explicit Euler at 1e-4 s (|1 + h lambda| >= 3) overshoots and leaves the
+    /// range the pressures can physically reach (between tank and supply) by several bar
+    /// within 2 ms, where ROS2 (80 internal steps of 25 us) keeps both inside it. The
+    /// orifice law's square root flattens as the pressure drop grows, which is what stops
+    /// Euler's growth here short of overflow.
+    #[test]
+    fn explicit_euler_at_a_tenth_of_a_millisecond_leaves_the_physical_range() {
+        let c = Coefficients::new(&Params::PAPER).unwrap();
+        let params = &c.cylinder;
+        let p_supply = Inputs::PAPER.p_supply;
+        let xs = 3e-4;
+        let mut start = equilibrium(params, p_supply, 0.0).to_array();
+        (start[cylinder::PA], start[cylinder::PB]) = (p_supply - 1e3, 1e3);
+        let (_, jac, _) = linearise(params, &start, xs, p_supply, 0.0);
+        assert!(jac[cylinder::PA][cylinder::PA] * 1e-4 < -2.0, "{:e}", jac[0][0]);
+        let mut euler = start;
+        let mut euler_worst: f64 = 0.0;
+        for _ in 0..20 {
+            let state = CylinderState::from_array(&euler);
+            let f = cylinder::derivatives(params, &state, xs, p_supply, 0.0);
+            for (y, d) in euler.iter_mut().zip(f) {
+                *y += 1e-4 * d;
+            }
+            let outside = |p: f64| (p - p_supply).max(params.p_tank - p).max(0.0);
+            euler_worst = euler_worst.max(outside(euler[0])).max(outside(euler[1]));
+        }
+        let mut y = start;
+        for _ in 0..80 {
+            y = ros2(params, &y, xs, p_supply, 25e-6);
+        }
+        println!("explicit Euler: {euler_worst:e} Pa outside [tank, supply]");
+        assert!(euler_worst > 1e5, "explicit Euler: {euler_worst:e} Pa outside");
+        for p in [y[cylinder::PA], y[cylinder::PB]] {
+            assert!((params.p_cavitation..=p_supply + 1e3).contains(&p), "ROS2: {p:e}");
+        }
+    }
+
+    /// One ROS2 step of `h` with the spool held at `xs` (as `ros2_step` takes it).
+    fn ros2(params: &CylinderParams, y: &[f64; 4], xs: f64, p_supply: f64, h: f64) -> [f64; 4] {
+        let (f0, jac, _) = linearise(params, y, xs, p_supply, 0.0);
+        let mut w = jac;
+        for (i, row) in w.iter_mut().enumerate() {
+            for (j, a) in row.iter_mut().enumerate() {
+                *a = f64::from(u8::from(i == j)) - GAMMA * h * *a;
+            }
+        }
+        let lu = Lu4::factor(w).unwrap();
+        let k1 = lu.solve(f0);
+        let y_mid: [f64; 4] = std::array::from_fn(|i| y[i] + h * k1[i]);
+        let mid = CylinderState::from_array(&y_mid);
+        let f1 = cylinder::derivatives(params, &mid, xs, p_supply, 0.0);
+        let k2 = lu.solve(std::array::from_fn(|i| f1[i] - 2.0 * k1[i]));
+        std::array::from_fn(|i| y[i] + 0.5 * h * (3.0 * k1[i] + k2[i]))
+    }
+}

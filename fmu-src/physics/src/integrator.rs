@@ -81,6 +81,9 @@ pub(crate) trait Integrator {
 
 /// The integrator [`SolverMethod`] chose (dispatched by `match`: no allocation, no
 /// indirection on the hot path).
+// Inline, not boxed: an instance holds one integrator for its life, and a box would be an
+// indirection on the hot path (and an allocation at every change of method).
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone)]
 pub(crate) enum ChosenIntegrator {
     Exact(ExactIntegrator),
