@@ -1,12 +1,15 @@
 """Every figure the FMU must reproduce (the paper's rows 1-11), measured through fmpy on
 both archives, with its band and a verdict. The README's figures come from this command:
 
-    .venv/bin/python cosim-examples/figures.py
+    .venv/bin/python cosim-examples/figures.py [--method exact|fixed_cost]
 
 Exits with status 1 if any row is outside its band. The scenarios and bands are the
-ehsv package's (the tests in tests/python check the same runs).
+ehsv package's (the tests in tests/python check the same runs). ``--method`` sets
+solver.method on every run (default exact, the README's table; fixed_cost: the same rows
+with the fixed-cost integrator, tests/python/test_fixed_cost.py).
 """
 
+import argparse
 import sys
 
 import numpy as np
@@ -16,10 +19,10 @@ import ehsv
 MA = 1e-3
 
 
-def current_rows(version):
+def current_rows(version, params):
     """Rows 1-3: the op-amp driver's current steps at 72 V (1 us output)."""
-    five = ehsv.run_step(version, "opamp_pi", 5 * MA, h=1e-6, t_stop=3e-3)
-    ten = ehsv.run_step(version, "opamp_pi", 10 * MA, h=1e-6, t_stop=3e-3)
+    five = ehsv.run_step(version, "opamp_pi", 5 * MA, h=1e-6, t_stop=3e-3, params=params)
+    ten = ehsv.run_step(version, "opamp_pi", 10 * MA, h=1e-6, t_stop=3e-3, params=params)
     t = five["time"]
     return {
         1: ehsv.settling_time(t, five["i_coil"], 0.0, 0.02, y_final=5 * MA, y_initial=0.0),
@@ -28,11 +31,11 @@ def current_rows(version):
     }
 
 
-def valve_rows(version):
+def valve_rows(version, params):
     """Rows 6, 7 and 10: Q_valve settling with the linear drivers, and the static gain."""
     rows = {}
     for row, driver, t_stop in ((6, "ideal_current", 40e-3), (7, "voltage", 60e-3)):
-        r = ehsv.run_step(version, driver, 5 * MA, h=1e-5, t_stop=t_stop, outputs=("Q_valve",))
+        r = ehsv.run_step(version, driver, 5 * MA, h=1e-5, t_stop=t_stop, outputs=("Q_valve",), params=params)
         rows[row] = ehsv.settling_time(r["time"], r["Q_valve"], 0.0, 0.05, y_initial=0.0)
     gains = []
     for driver in ehsv.DRIVERS:
@@ -44,26 +47,27 @@ def valve_rows(version):
             t_stop=0.1,
             outputs=("i_coil", "Q_valve"),
             V_supply=24.0 if driver == "industrial" else 72.0,
+            params=params,
         )
         gains.append(r["Q_valve"][-1] / (r["i_coil"][-1] / MA))
     rows[10] = (min(gains), max(gains))
     return rows
 
 
-def driver_rows(version):
+def driver_rows(version, params):
     """Rows 4 and 5: the paper's driver table in one run."""
-    results = ehsv.compare_drivers(version)
+    results = ehsv.compare_drivers(version, params=params)
     return {4: results["industrial"].settling, 5: results["hbridge_pid"].settling}
 
 
-def flow_rows(version):
+def flow_rows(version, params):
     """Rows 8, 9 (flow loop at 72 V and 10 V) and 11 (steady flow on the cylinder)."""
-    flows = ehsv.compare_flow_supplies(version)
+    flows = ehsv.compare_flow_supplies(version, params=params)
     run = ehsv.run_scenario(
         version,
         h=1e-5,
         t_stop=0.1,
-        params={"control_mode": ehsv.CONTROL_MODES["flow"]},
+        params={"control_mode": ehsv.CONTROL_MODES["flow"], **params},
         changes={"Q_ref": 2e-5},
     )
     speed_error = abs(run["v_piston"][-1] - run["Q_A"][-1] / ehsv.Cylinder.from_params().area_a) / abs(
@@ -77,20 +81,31 @@ def flow_rows(version):
     }
 
 
-def main() -> int:
+def measure(version, method):
+    """Every row of ``version``'s archive with solver.method = ``method``: {row: value}."""
+    params = ehsv.method_params(method)
+    return {
+        **current_rows(version, params),
+        **valve_rows(version, params),
+        **driver_rows(version, params),
+        **flow_rows(version, params),
+    }
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--method", choices=("exact", "fixed_cost"), default="exact", help="solver.method")
+    args = ap.parse_args(argv)
     measured = {}
     for version in ehsv.VERSIONS:
         missing = ehsv.missing_fmu_message(version)
         if missing:
             print(missing)
             return 1
-        measured[version] = {
-            **current_rows(version),
-            **valve_rows(version),
-            **driver_rows(version),
-            **flow_rows(version),
-        }
+        measured[version] = measure(version, args.method)
     ok = True
+    if args.method != "exact":  # the default's table stays the README's, line for line
+        print(f"solver.method = {args.method}")
     print(f"{'row':>3}  {'scenario':52} {'FMI 2.0':>24} {'FMI 3.0':>24}  band")
     for r in ehsv.ROWS:
         verdicts = [r.check(measured[v][r.row]) for v in ehsv.VERSIONS]

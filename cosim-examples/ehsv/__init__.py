@@ -45,8 +45,10 @@ from .contract import (
     NOMINAL,
     OUTPUTS,
     PWM_DRIVERS,
+    SOLVER_METHODS,
     flow_gain,
     interface,
+    method_params,
     parameters,
 )
 from .fmu import Ehsv, LogRecord

@@ -4,7 +4,8 @@ The variable table in fmu-src/src/variables.rs renders both archives' XML; this 
 reads the FMI 2.0 archive's with ``fmpy.read_model_description`` the first time a value
 is asked for, so importing the package does not need a built FMU:
 
-* ``DRIVERS`` and ``CONTROL_MODES``: the enumerations, name -> integer value,
+* ``DRIVERS``, ``CONTROL_MODES`` and ``SOLVER_METHODS``: the enumerations, name -> integer
+  value,
 * ``INPUTS``: name -> (unit, start), ``OUTPUTS``: name -> unit (None for a Boolean),
 * ``NOMINAL``: every parameter's default (start) value in SI units (float, int or bool),
 * ``flow_gain()``: the valve's static gain Q_valve / i_coil = K3 K1 / Kw, m3/s per A.
@@ -30,6 +31,7 @@ PWM_DRIVERS = ("hbridge_pid",)
 class Interface:
     drivers: dict[str, int]
     control_modes: dict[str, int]
+    solver_methods: dict[str, int]
     inputs: dict[str, tuple[str | None, float]]
     outputs: dict[str, str | None]
     parameters: dict[str, float | int | bool]
@@ -59,6 +61,7 @@ def interface(version: str = SOURCE_VERSION) -> Interface:
     return Interface(
         drivers=_items(by_name["driver"]),
         control_modes=_items(by_name["control_mode"]),
+        solver_methods=_items(by_name["solver.method"]),
         inputs={v.name: (v.unit, float(v.start)) for v in vs if v.causality == "input"},
         outputs={v.name: (None if v.type == "Boolean" else v.unit) for v in vs if v.causality == "output"},
         parameters={v.name: _start(v) for v in vs if v.causality == "parameter"},
@@ -89,6 +92,7 @@ class _FromArchive(Mapping):
 
 DRIVERS: Mapping[str, int] = _FromArchive("drivers")
 CONTROL_MODES: Mapping[str, int] = _FromArchive("control_modes")
+SOLVER_METHODS: Mapping[str, int] = _FromArchive("solver_methods")
 INPUTS: Mapping[str, tuple[str | None, float]] = _FromArchive("inputs")
 OUTPUTS: Mapping[str, str | None] = _FromArchive("outputs")
 NOMINAL: Mapping[str, float | int | bool] = _FromArchive("parameters")
@@ -97,6 +101,12 @@ NOMINAL: Mapping[str, float | int | bool] = _FromArchive("parameters")
 def parameters(overrides: Mapping | None = None) -> dict:
     """The default parameters with ``overrides`` applied."""
     return {**NOMINAL, **(overrides or {})}
+
+
+def method_params(method: str) -> dict:
+    """The parameter that selects the integrator ``method`` ('exact' or 'fixed_cost'), to
+    merge into a run's parameters (structural: set before initialisation)."""
+    return {"solver.method": SOLVER_METHODS[method]}
 
 
 def flow_gain(params: Mapping | None = None) -> float:

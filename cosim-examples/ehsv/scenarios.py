@@ -161,12 +161,15 @@ def driver_step(
 
 
 def compare_drivers(
-    version: str, *, h: float = COMPARE_H, t_stop: float = COMPARE_T_STOP
+    version: str, *, h: float = COMPARE_H, t_stop: float = COMPARE_T_STOP, params: dict | None = None
 ) -> dict[str, DriverResult]:
     """Runs the three drivers of the paper's table in one go (PAPER_DRIVERS: op-amp at
-    72 V, H-bridge at 12 V, industrial at 24 V; 0 -> 5 mA at t = 0, nominal parameters,
-    outputs every ``h``) and returns {driver name: DriverResult}, fastest first."""
-    return {spec.driver: driver_step(version, spec, h=h, t_stop=t_stop) for spec in PAPER_DRIVERS}
+    72 V, H-bridge at 12 V, industrial at 24 V; 0 -> 5 mA at t = 0, nominal parameters
+    but ``params``, outputs every ``h``) and returns {driver name: DriverResult}, fastest
+    first."""
+    return {
+        spec.driver: driver_step(version, spec, h=h, t_stop=t_stop, params=params) for spec in PAPER_DRIVERS
+    }
 
 
 @dataclass
@@ -205,6 +208,9 @@ def flow_step(
     return FlowStepResult(v_supply, h, r, ts)
 
 
-def compare_flow_supplies(version: str, h: float = FLOW_H) -> dict[float, FlowStepResult]:
-    """The flow step at both supplies of the paper (72 V, 10 V): {V_supply: result}."""
-    return {spec.V_supply: flow_step(version, spec.V_supply, h) for spec in PAPER_FLOW}
+def compare_flow_supplies(
+    version: str, h: float = FLOW_H, params: dict | None = None
+) -> dict[float, FlowStepResult]:
+    """The flow step at both supplies of the paper (72 V, 10 V), nominal parameters but
+    ``params``: {V_supply: result}."""
+    return {spec.V_supply: flow_step(version, spec.V_supply, h, params=params) for spec in PAPER_FLOW}

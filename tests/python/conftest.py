@@ -28,17 +28,18 @@ def fmu(version):
 
 
 @functools.cache
-def _cached_run(version, driver, i_step, h, t_stop, outputs):
-    result = ehsv.run_step(version, driver, i_step, h=h, t_stop=t_stop, outputs=outputs)
+def _cached_run(version, driver, i_step, h, t_stop, outputs, method):
+    params = None if method == "exact" else ehsv.method_params(method)
+    result = ehsv.run_step(version, driver, i_step, h=h, t_stop=t_stop, outputs=outputs, params=params)
     for a in result.values():
         a.setflags(write=False)  # shared between tests: read-only
     return result
 
 
-def cached_run(version, driver, i_step, *, h, t_stop, outputs=ehsv.DEFAULT_OUTPUTS):
-    """run_step (step at t = 0 from rest, V_supply 72 V, nominal parameters), once per
-    session for each distinct set of arguments."""
-    return _cached_run(version, driver, float(i_step), float(h), float(t_stop), tuple(outputs))
+def cached_run(version, driver, i_step, *, h, t_stop, outputs=ehsv.DEFAULT_OUTPUTS, method="exact"):
+    """run_step (step at t = 0 from rest, V_supply 72 V, nominal parameters but
+    solver.method = ``method``), once per session for each distinct set of arguments."""
+    return _cached_run(version, driver, float(i_step), float(h), float(t_stop), tuple(outputs), method)
 
 
 @pytest.fixture(scope="session")
