@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .contract import SOLVER_METHODS
 from .fmu import Ehsv
 
 #: Outputs are compared at this interval (s): a multiple of every step size used.
@@ -72,11 +73,12 @@ def run_coupled(
     method: str | None = None,
 ) -> Trace:
     """The host loop above; with ``input_derivatives`` the host also gives the rod's
-    acceleration (its last one) as the derivative of v_rod (FMI 2 only)."""
+    acceleration (its last one) as the derivative of v_rod (FMI 2 only); ``method``: the
+    FMU's solver.method by name ('exact', 'fixed_cost'; None: the default)."""
     fmu = Ehsv(version)
     settings = {"cylinder__port": 1, "control_mode": 2}
     if method is not None:
-        settings["solver__method"] = method
+        settings["solver__method"] = SOLVER_METHODS[method]
     fmu.initialize(**settings)
     vrs = [fmu.vr(n) for n in ("x_rod", "v_rod", "x_ref")]
     f_rod = [fmu.vr("F_rod")]
