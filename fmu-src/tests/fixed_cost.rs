@@ -65,11 +65,21 @@ fn compare(
     h: f64,
     input: &dyn Fn(f64) -> (usize, f64),
 ) -> [f64; 6] {
-    let mut exact = model(settings);
-    let fixed_settings: Vec<_> = settings.iter().copied().chain([method("fixed_cost")]).collect();
-    let mut fixed = model(&fixed_settings);
-    let reference = trace(&mut exact, duration, h, input);
-    errors(&reference, &trace(&mut fixed, duration, h, input))
+    let fixed: Vec<_> = settings.iter().copied().chain([method("fixed_cost")]).collect();
+    compare_with(settings, &fixed, duration, h, input)
+}
+
+/// Each output's largest error over its range, the `other` settings against the
+/// `reference` ones, both stepped at `h`.
+fn compare_with(
+    reference: &[(&str, f64)],
+    other: &[(&str, f64)],
+    duration: f64,
+    h: f64,
+    input: &dyn Fn(f64) -> (usize, f64),
+) -> [f64; 6] {
+    let expected = trace(&mut model(reference), duration, h, input);
+    errors(&expected, &trace(&mut model(other), duration, h, input))
 }
 
 /// Driver, coil and valve (the first three outputs) go by exact propagators between
@@ -116,25 +126,21 @@ fn fixed_cost_follows_exact_in_the_loops() {
     assert!(e[..3].iter().all(|&x| x < 1e-9) && e[5] < 1e-4, "{}", show(&e));
 }
 
-/// The pressures' and position's largest error over their range, fixed_cost against exact
-/// both stepped at `h` (the internal step is `h` itself below 25 us), sampled every 0.1 ms.
-fn error_at_step(kind: &str, h: f64) -> [f64; 6] {
-    let mut e = model(&[driver(kind)]);
-    let mut f = model(&[driver(kind), method("fixed_cost")]);
+/// The outputs' largest error over their range, fixed_cost with internal steps of at most
+/// `h_internal` against exact, both stepped at 1e-4 s.
+fn error_at_internal_step(kind: &str, h_internal: f64) -> [f64; 6] {
     let s = sine(20.0, 5e-3);
-    let every = (1e-4 / h).round() as usize;
-    let command = |t: f64| (vr::I_REF, s((t / 1e-4 + 1e-6).floor() * 1e-4));
-    let a: Vec<_> = trace(&mut e, 0.1, h, &command).into_iter().step_by(every).collect();
-    let b: Vec<_> = trace(&mut f, 0.1, h, &command).into_iter().step_by(every).collect();
-    errors(&a, &b)
+    let fixed = [driver(kind), method("fixed_cost"), ("solver.h_internal", h_internal)];
+    compare_with(&[driver(kind)], &fixed, 0.1, 1e-4, &|t| (vr::I_REF, s(t)))
 }
 
-/// ROS2 is of order 2: halving the internal step from 25 us divides the pressures' error
-/// by about 4 until the exact method's own tolerance (solver.rtol 1e-7) is reached.
+/// ROS2 is of order 2: halving `solver.h_internal` from 25 us divides the pressures' and
+/// the position's error by about 4 until the exact method's own tolerance (solver.rtol
+/// 1e-7) is reached.
 #[test]
-fn fixed_cost_converges_with_order_two() {
+fn fixed_cost_converges_with_order_two_as_the_internal_step_shrinks() {
     let errors: Vec<[f64; 6]> =
-        [2.5e-5, 1.25e-5, 6.25e-6].iter().map(|&h| error_at_step("opamp_pi", h)).collect();
+        [2.5e-5, 1.25e-5, 6.25e-6].iter().map(|&h| error_at_internal_step("opamp_pi", h)).collect();
     for k in [3, 4, 5] {
         let order = |a: f64, b: f64| (a / b).log2();
         let (o1, o2) = (order(errors[0][k], errors[1][k]), order(errors[1][k], errors[2][k]));
@@ -146,24 +152,30 @@ fn fixed_cost_converges_with_order_two() {
     }
 }
 
-/// The same run with the communication step 1e-4 and 5e-5 (both multiples of the 25 us
-/// internal step): the same internal grid, the same results to rounding.
+/// The same run with the communication step 1e-4 and 5e-5 (both multiples of the internal
+/// step, 25 us and 50 us): the same internal grid, the same results to rounding.
 #[test]
 fn fixed_cost_does_not_depend_on_the_communication_step() {
     let s = sine(20.0, 5e-3);
     let command = |t: f64| (vr::I_REF, s((t / 1e-4 + 1e-6).floor() * 1e-4));
-    let mut a = model(&[driver("opamp_pi"), method("fixed_cost")]);
-    let mut b = model(&[driver("opamp_pi"), method("fixed_cost")]);
-    let coarse = trace(&mut a, 0.1, 1e-4, &command);
-    let fine: Vec<_> = trace(&mut b, 0.1, 5e-5, &command).into_iter().skip(1).step_by(2).collect();
-    let e = errors(&coarse, &fine);
-    println!("1e-4 against 5e-5: {}", show(&e));
-    assert!(e.iter().all(|&x| x < 1e-9), "{}", show(&e));
+    for h_internal in [25e-6, 50e-6] {
+        let settings =
+            [driver("opamp_pi"), method("fixed_cost"), ("solver.h_internal", h_internal)];
+        let coarse = trace(&mut model(&settings), 0.1, 1e-4, &command);
+        let fine: Vec<_> = trace(&mut model(&settings), 0.1, 5e-5, &command)
+            .into_iter()
+            .skip(1)
+            .step_by(2)
+            .collect();
+        let e = errors(&coarse, &fine);
+        println!("h_internal {h_internal:e}, 1e-4 against 5e-5: {}", show(&e));
+        assert!(e.iter().all(|&x| x < 1e-9), "{}", show(&e));
+    }
 }
 
 /// Long runs stay bounded: 2 s of 100 Hz squares (impacts of the spool, pressure
 /// transients at every reversal) keep the pressures inside the relief envelope and the
-/// piston inside its travel; the run ends where exact ends after the command stops.
+/// piston inside its travel.
 #[test]
 fn fixed_cost_stays_bounded_on_hard_workloads() {
     let mut m = model(&[driver("opamp_pi"), method("fixed_cost")]);

@@ -1,6 +1,6 @@
 //! The fixed-cost integrator behind the seam ([`super::integrator`]): work fixed by the
 //! segment's length, for real-time rigs. Each segment is cut into `n` equal internal steps,
-//! `n = ceil(span / H_INTERNAL)` (at least the exact propagator's own count): a loop period
+//! `n = ceil(span / h_internal)` (`solver.h_internal`, 25 us by default): a loop period
 //! of 50 us gives two steps of 25 us, and where the internal step divides the
 //! communication step the cuts do not depend on it. Per internal step:
 //! * driver, coil and valve go by the mode's propagator over the step (cached per mode
@@ -18,9 +18,6 @@ use super::integrator::{Integrator, Segment};
 use super::lu4::Lu4;
 use super::*;
 
-/// The longest internal step (s): a divisor of the default 50 us loop period.
-pub(crate) const H_INTERNAL: f64 = 25e-6;
-
 /// Mode changes placed inside one internal step at most; more are decided at its end.
 const MAX_SWITCHES: usize = 3;
 
@@ -30,12 +27,19 @@ const GAMMA: f64 = 1.707_106_781_186_547_5;
 /// The fixed-cost integrator's own state: the propagators it built (a pure cache).
 #[derive(Clone)]
 pub(crate) struct FixedCostIntegrator {
+    /// The longest internal step (s), `solver.h_internal`.
+    h_internal: f64,
     cache: PropagatorCache,
 }
 
 impl FixedCostIntegrator {
-    pub(crate) fn new(_actuator: &Actuator) -> FixedCostIntegrator {
-        FixedCostIntegrator { cache: PropagatorCache::new() }
+    pub(crate) fn new(h_internal: f64) -> FixedCostIntegrator {
+        FixedCostIntegrator { h_internal, cache: PropagatorCache::new() }
+    }
+
+    /// How many internal steps cut a segment of `span`.
+    fn internal_steps(&self, span: f64) -> usize {
+        augmented_state::ceil_count(span / self.h_internal).max(1)
     }
 }
 
@@ -52,7 +56,7 @@ impl Integrator for FixedCostIntegrator {
         inputs: &HeldInputs,
         events: &mut StepEvents,
     ) -> Result<(), String> {
-        let n = augmented_state::ceil_count(segment.span / H_INTERNAL).max(1);
+        let n = self.internal_steps(segment.span);
         let h = segment.span / n as f64;
         for _ in 0..n {
             let xs0 = actuator.z[XS];
@@ -67,7 +71,7 @@ impl Integrator for FixedCostIntegrator {
         let c = &actuator.params;
         let looping = c.loops.mode != ControlMode::Current;
         for span in [Some(step), looping.then(|| 1.0 / c.loops.f_sample)].into_iter().flatten() {
-            let n = augmented_state::ceil_count(span / H_INTERNAL).max(1);
+            let n = self.internal_steps(span);
             let key = propagator_key(actuator);
             let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
             let _ = self.cache.get(key, sys, span / n as f64, true, 1);

@@ -35,7 +35,7 @@
 use super::actuator::Actuator;
 use super::exact_integrator::ExactIntegrator;
 use super::fixed_cost::FixedCostIntegrator;
-use super::{HeldInputs, SolverMethod, StepEvents, Work};
+use super::{HeldInputs, Params, SolverMethod, StepEvents, Work};
 
 /// A stretch of a communication step without time events.
 #[derive(Clone, Copy, Debug)]
@@ -92,11 +92,11 @@ pub(crate) enum ChosenIntegrator {
 
 impl ChosenIntegrator {
     /// The integrator of `method` for `actuator`.
-    pub(crate) fn new(method: SolverMethod, actuator: &Actuator) -> ChosenIntegrator {
-        match method {
+    pub(crate) fn new(params: &Params, actuator: &Actuator) -> ChosenIntegrator {
+        match params.solver_method {
             SolverMethod::Exact => ChosenIntegrator::Exact(ExactIntegrator::new(actuator)),
             SolverMethod::FixedCost => {
-                ChosenIntegrator::FixedCost(FixedCostIntegrator::new(actuator))
+                ChosenIntegrator::FixedCost(FixedCostIntegrator::new(params.solver_h_internal))
             }
         }
     }

@@ -260,7 +260,7 @@ impl Physics {
     /// `start_time` (the sampling clocks of the digital loops count from time 0).
     pub fn start(params: &Params, inputs: &Inputs, start_time: f64) -> Result<Physics, String> {
         let actuator = Actuator::start(params, inputs, start_time)?;
-        let integrator = ChosenIntegrator::new(params.solver_method, &actuator);
+        let integrator = ChosenIntegrator::new(params, &actuator);
         let rod_force_mean = actuator.rod_force();
         Ok(Physics { actuator, integrator, resting: None, rod_force_mean })
     }

@@ -66,7 +66,7 @@ pub enum SolverMethod {
     /// happens in it.
     Exact,
     /// Work fixed by the step size for real-time rigs: driver, coil and valve by
-    /// precomputed propagators over internal steps of at most 25 us, mode changes at
+    /// precomputed propagators over internal steps of at most `solver_h_internal`, mode changes at
     /// their boundaries, the cylinder by a linearly implicit L-stable Rosenbrock method
     /// (ROS2) without error control (docs/solvers.md).
     FixedCost,
@@ -207,6 +207,8 @@ pub struct Params {
     pub solver_rtol: f64,
     /// The integrator the physics steps through.
     pub solver_method: SolverMethod,
+    /// The longest internal step of [`SolverMethod::FixedCost`] (s).
+    pub solver_h_internal: f64,
 }
 
 /// Inputs, held constant over a communication step.
@@ -314,6 +316,7 @@ impl Params {
         },
         solver_rtol: 1.0e-7,
         solver_method: SolverMethod::Exact,
+        solver_h_internal: 25e-6,
     };
 }
 

@@ -51,7 +51,7 @@ impl Physics {
         } else {
             // Another integrator: the old one's work stays counted.
             self.integrator.count_work(&mut a.work);
-            self.integrator = ChosenIntegrator::new(params.solver_method, a);
+            self.integrator = ChosenIntegrator::new(params, a);
         }
         // The same step again may no longer change nothing.
         self.resting = None;
@@ -321,6 +321,7 @@ mod tests {
             outer_loop.f_sample,
             outer_loop.i_max,
             solver_rtol,
+            solver_h_internal,
         ];
         let gains: [Change; 6] = [
             ("outer_loop.flow[0]", |p| bump(&mut p.outer_loop.flow[0])),
