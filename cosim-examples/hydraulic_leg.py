@@ -20,7 +20,10 @@ be made (MUJOCO_GL=egl by default, or osmesa; scripts/setup-gl.sh installs them)
 out/hydraulic_leg_render.png (frames of the run).
 
     .venv/bin/python cosim-examples/hydraulic_leg.py [--duration 6] [--short]
-        [--actuator auto|fmu|stand-in] [--fmi3] [--no-render]
+        [--actuator auto|fmu|stand-in] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
+
+--method sets the FMU's solver.method; both runs the same scenario with exact, then
+fixed_cost, and prints their real-time factors and figures side by side.
 """
 
 from __future__ import annotations
@@ -254,6 +257,7 @@ def run(
     version: str = "fmi2",
     render: bool = True,
     hyd: Hydraulics = HYD,
+    method: str = "exact",
 ) -> LegRun:
     if render:
         robot.gl_backend()  # before mujoco's import
@@ -270,7 +274,7 @@ def run(
     data.qpos[jid["hip"]], data.qpos[jid["knee"]] = q0
     mujoco.mj_forward(model, data)
     x0 = levers.rod(np.array(q0))[0]
-    bank, line = robot.make_bank(kind, len(LEVERS), hyd, x0, x0, version)
+    bank, line = robot.make_bank(kind, len(LEVERS), hyd, x0, x0, version, method)
 
     foot = model.site("foot").id
     ten_adr = [model.tendon(n).id for n in ("hip_cyl", "knee_cyl")]
@@ -398,28 +402,36 @@ def report(r: LegRun) -> None:
     print("  " + r.timing.line(r.t_end, len(LEVERS), r.kind))
 
 
+def figures(r: LegRun) -> dict[str, str]:
+    """The holding and tracking figures of ``report``, for the side-by-side table."""
+    s = r.summary()
+    out = {
+        "hold: mean error, mm": f"{s['hold_err_mean'] * 1e3:+.2f}",
+        "hold: largest error, mm": f"{s['hold_err_max'] * 1e3:.2f}",
+    }
+    if "squat_amp" in s:
+        out["squat amplitude, mm"] = f"{s['squat_amp'] * 1e3:.1f}"
+        out["squat lag, ms"] = f"{s['squat_lag_ms']:.0f}"
+    if "hop_trunk_rise" in s:
+        out["hop: trunk rise, mm"] = f"{s['hop_trunk_rise'] * 1e3:.0f}"
+        out["hop: landing low, m"] = f"{s['landing_low']:.3f}"
+        out["end: height error, mm"] = f"{s['end_err'] * 1e3:.1f}"
+    out["pressures, MPa"] = f"{s['p_min'] / 1e6:.2f}..{s['p_max'] / 1e6:.2f}"
+    out["coil current peak, mA"] = f"{s['i_peak'] * 1e3:.2f}"
+    return out
+
+
 def main(argv=None) -> int:
-    ap = cli.parser(__doc__)
-    ap.add_argument("--duration", type=float, default=6.0, help="simulated time, s (default 6)")
-    ap.add_argument("--short", action="store_true", help="0.6 s: stand up and hold (the test's run)")
-    ap.add_argument("--actuator", choices=("auto", "fmu", "stand-in"), default="auto")
-    ap.add_argument("--no-render", action="store_true", help="no MuJoCo picture")
-    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / "hydraulic_leg.png")
+    ap = robot.parser(__doc__, 6.0, "0.6 s: stand up and hold (the test's run)", "hydraulic_leg.png")
     args = ap.parse_args(argv)
     version = cli.version(args)
     if args.actuator == "fmu" and cli.archive_missing(version):
         return 1
-    r = run(args.duration, args.short, args.actuator, version, render=not args.no_render)
-    report(r)
-    plot(r, args.out)
-    if args.no_render:
-        print("picture: skipped (--no-render)")
-    elif r.render_error:
-        print(f"picture: skipped, no OpenGL context (MUJOCO_GL={robot.gl_backend()}): {r.render_error}")
-    elif r.frames:
-        out = args.out.with_name(args.out.stem + "_render.png")
-        robot.save_strip(r.frames, r.frame_labels, out)
-        print(f"picture: {out}")
+
+    def one(method, render):
+        return run(args.duration, args.short, args.actuator, version, render=render, method=method)
+
+    robot.run_methods(args, one, report, plot, figures)
     return 0
 
 

@@ -18,7 +18,10 @@ out/quadruped.png (base height, roll, pitch, the 12 rod forces) and, where a GL 
 can be made, out/quadruped_render.png.
 
     .venv/bin/python cosim-examples/quadruped.py [--duration 8.5] [--short]
-        [--actuator auto|fmu|stand-in] [--fmi3] [--no-render]
+        [--actuator auto|fmu|stand-in] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
+
+--method sets the FMU's solver.method; both runs the same scenario with exact, then
+fixed_cost, and prints their real-time factors and figures side by side.
 """
 
 from __future__ import annotations
@@ -257,6 +260,7 @@ def run(
     version: str = "fmi2",
     render: bool = True,
     hyd: Hydraulics = HYD,
+    method: str = "exact",
 ) -> QuadRun:
     if render:
         robot.gl_backend()
@@ -275,7 +279,7 @@ def run(
         data.qpos[model.joint(name).qposadr[0]] = q0[j]
     mujoco.mj_forward(model, data)
     x0 = levers.rod(q0)[0]
-    bank, line = robot.make_bank(kind, len(JOINTS), hyd, x0, x0, version)
+    bank, line = robot.make_bank(kind, len(JOINTS), hyd, x0, x0, version, method)
 
     def probe(d):
         roll, pitch = attitude(d.qpos[3:7])
@@ -386,29 +390,36 @@ def report(r: QuadRun) -> None:
     print("  " + r.timing.line(r.t_end, len(JOINTS), r.kind))
 
 
+def figures(r: QuadRun) -> dict[str, str]:
+    """The holding and tracking figures of ``report``, for the side-by-side table."""
+    s = r.summary()
+    out = {
+        "fell": "yes" if r.fell else "no",
+        "stance: base height, m": f"{s['stance_z']:.4f}",
+        "stance: largest error, mm": f"{s['stance_err_max'] * 1e3:.1f}",
+        "stance: tilt within, deg": f"{s['stance_tilt_max']:.2f}",
+    }
+    if "trot_z" in s:
+        out["trot: base, m"] = f"{s['trot_z'][0]:.3f}..{s['trot_z'][1]:.3f}"
+        out["trot: roll within, deg"] = f"{s['trot_roll_max']:.1f}"
+        out["trot: pitch within, deg"] = f"{s['trot_pitch_max']:.1f}"
+        out["trot: drift, mm"] = f"{s['trot_drift'] * 1e3:.0f}"
+    out["pressure peak, MPa"] = f"{s['p_max'] / 1e6:.2f}"
+    return out
+
+
 def main(argv=None) -> int:
-    ap = cli.parser(__doc__)
-    ap.add_argument("--duration", type=float, default=8.5, help="simulated time, s (default 8.5)")
-    ap.add_argument("--short", action="store_true", help="0.4 s standing from the stance (the test's run)")
-    ap.add_argument("--actuator", choices=("auto", "fmu", "stand-in"), default="auto")
-    ap.add_argument("--no-render", action="store_true")
-    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / "quadruped.png")
+    ap = robot.parser(__doc__, 8.5, "0.4 s standing from the stance (the test's run)", "quadruped.png")
     args = ap.parse_args(argv)
     version = cli.version(args)
     if args.actuator == "fmu" and cli.archive_missing(version):
         return 1
-    r = run(args.duration, args.short, args.actuator, version, render=not args.no_render)
-    report(r)
-    plot(r, args.out)
-    if args.no_render:
-        print("picture: skipped (--no-render)")
-    elif r.render_error:
-        print(f"picture: skipped, no OpenGL context (MUJOCO_GL={robot.gl_backend()}): {r.render_error}")
-    elif r.frames:
-        out = args.out.with_name(args.out.stem + "_render.png")
-        robot.save_strip(r.frames, r.frame_labels, out)
-        print(f"picture: {out}")
-    return 1 if r.fell else 0
+
+    def one(method, render):
+        return run(args.duration, args.short, args.actuator, version, render=render, method=method)
+
+    runs = robot.run_methods(args, one, report, plot, figures)
+    return 1 if any(r.fell for r in runs.values()) else 0
 
 
 if __name__ == "__main__":

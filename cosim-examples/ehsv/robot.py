@@ -25,20 +25,28 @@ What cosim-examples/hydraulic_leg.py and quadruped.py share:
   actuator calls and the Python around them,
 * ``leg_ik``: the 2-link leg's joint angles that put the foot at a point below the hip,
 * ``render_frames``/``save_strip``: MuJoCo's offscreen renderer (MUJOCO_GL=egl or osmesa);
-  where no GL context can be made they say why and the caller goes on without a picture.
+  where no GL context can be made they say why and the caller goes on without a picture,
+* the examples' command line (``parser``: --duration, --short, --actuator, --method,
+  --no-render, --out, --fmi3) and what their main() does with it (``run_methods``: one run
+  per solver.method, each reported and plotted, the two side by side with ``--method
+  both``; ``report_picture``: the strip of frames or why there is none).
 """
 
 from __future__ import annotations
 
+import argparse
 import ctypes
 import math
 import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from . import cli
+from .contract import method_params
 from .fmu import model_description
 from .paths import fmu_path, missing_fmu_message, require_fmu
 
@@ -420,10 +428,11 @@ class StandInBank(ActuatorBank):
 
 
 def make_bank(
-    kind: str, n: int, hyd: Hydraulics, x0, x_ref0, version: str = "fmi2"
+    kind: str, n: int, hyd: Hydraulics, x0, x_ref0, version: str = "fmi2", method: str = "exact"
 ) -> tuple[ActuatorBank, str]:
     """The actuator bank ``kind`` ('fmu', 'stand-in' or 'auto': the FMU when its archive
-    has the motion port, else the stand-in) and a line saying which and why."""
+    has the motion port, else the stand-in) and a line saying which and why. ``method``:
+    the FMU's solver.method ('exact' or 'fixed_cost'; the stand-in has none)."""
     if kind == "auto":
         missing = motion_port_missing(version)
         kind = "stand-in" if missing else "fmu"
@@ -432,11 +441,14 @@ def make_bank(
         why = ""
     if kind == "fmu":
         require_fmu(version)
-        bank = FmuBank(n, hyd, x0, x_ref0, version)
-        return bank, f"actuators: {n} x EhsvActuator FMU ({version}, motion port, position loop)"
+        bank = FmuBank(n, hyd, x0, x_ref0, version, extra=method_params(method))
+        return bank, (
+            f"actuators: {n} x EhsvActuator FMU ({version}, motion port, position loop, "
+            f"solver.method = {method})"
+        )
     if kind == "stand-in":
         bank = StandInBank(n, hyd, x0, x_ref0)
-        return bank, f"actuators: {n} x Python stand-in of the motion port{why}"
+        return bank, f"actuators: {n} x Python stand-in of the motion port{why} (no solver.method)"
     raise ValueError(f"unknown actuator kind {kind!r}")
 
 
@@ -733,3 +745,89 @@ def scene_head(name: str, texrepeat: int, light: str, light_dir: str, floor: flo
     <light pos="{light}" dir="{light_dir}" diffuse=".8 .8 .8" castshadow="true"/>
     <geom name="floor" type="plane" size="{floor} {floor} 0.05" material="grid" contype="1" conaffinity="1"
           friction="1 0.005 0.0001" solref="0.004 1"/>"""
+
+
+# ---------------------------------------------------------------------------------------
+# the examples' command line and main()
+# ---------------------------------------------------------------------------------------
+#: --method: the FMU's solver.method, or both one after the other
+METHOD_CHOICES = ("exact", "fixed_cost", "both")
+
+
+def parser(doc: str, duration: float, short: str, out: str) -> argparse.ArgumentParser:
+    """A robot example's command line: --fmi3, --duration (default ``duration`` s),
+    --short (help ``short``), --actuator, --method, --no-render, --out (default
+    out/``out``)."""
+    ap = cli.parser(doc)
+    ap.add_argument(
+        "--duration", type=float, default=duration, help=f"simulated time, s (default {duration:g})"
+    )
+    ap.add_argument("--short", action="store_true", help=short)
+    ap.add_argument("--actuator", choices=("auto", "fmu", "stand-in"), default="auto")
+    ap.add_argument(
+        "--method",
+        choices=METHOD_CHOICES,
+        default="exact",
+        help="the FMU's solver.method; both: the same run with each, figures side by side (default exact)",
+    )
+    ap.add_argument("--no-render", action="store_true", help="no MuJoCo picture")
+    ap.add_argument("--out", type=Path, default=cli.OUT_DIR / out)
+    return ap
+
+
+def methods(choice: str) -> tuple[str, ...]:
+    """The solver.method of each run --method asks for."""
+    return ("exact", "fixed_cost") if choice == "both" else (choice,)
+
+
+def timing_figures(timing: Timing, t_sim: float) -> dict[str, str]:
+    """The cost of a run as figures for ``side_by_side``."""
+    us = 1e6 / max(timing.steps, 1)
+    return {
+        "wall real-time factor": f"{t_sim / timing.wall:.2f}",
+        "wall per step, us": f"{timing.wall * us:.1f}",
+        "actuators (set/doStep/get) per step, us": f"{timing.actuators * us:.1f}",
+        "actuators' share of the step": f"{100 * timing.actuators / timing.wall:.0f} %",
+    }
+
+
+def side_by_side(columns: dict[str, dict[str, str]]) -> None:
+    """Prints figures (label -> text) of several runs, one column per run."""
+    labels = list(dict.fromkeys(k for col in columns.values() for k in col))
+    width = max(len(k) for k in labels)
+    print(f"{'':{width}}  " + "  ".join(f"{name:>14}" for name in columns))
+    for k in labels:
+        print(f"{k:{width}}  " + "  ".join(f"{col.get(k, '-'):>14}" for col in columns.values()))
+
+
+def report_picture(args, r) -> None:
+    """Writes the run's strip of frames next to args.out, or says why there is none."""
+    if args.no_render:
+        print("picture: skipped (--no-render)")
+    elif r.render_error:
+        print(f"picture: skipped, no OpenGL context (MUJOCO_GL={gl_backend()}): {r.render_error}")
+    elif r.frames:
+        out = args.out.with_name(args.out.stem + "_render.png")
+        save_strip(r.frames, r.frame_labels, out)
+        print(f"picture: {out}")
+
+
+def run_methods(args, run: Callable, report: Callable, plot: Callable, figures: Callable) -> dict:
+    """What a robot example's main() does: ``run(method, render)`` once per method of
+    --method, each ``report``-ed and ``plot``-ted (the fixed_cost run of ``both`` to
+    args.out's name + _fixed_cost), the first run's picture, and with ``both`` the runs'
+    cost (timing_figures) and ``figures(run)`` side by side. Returns {method: run}."""
+    chosen = methods(args.method)
+    runs = {}
+    for i, method in enumerate(chosen):
+        if len(chosen) > 1:
+            print(f"== solver.method = {method}")
+        r = runs[method] = run(method, render=not args.no_render and i == 0)
+        report(r)
+        out = args.out if i == 0 else args.out.with_name(f"{args.out.stem}_{method}{args.out.suffix}")
+        plot(r, out)
+    report_picture(args, next(iter(runs.values())))
+    if len(runs) > 1:
+        print("== side by side")
+        side_by_side({m: {**timing_figures(r.timing, r.t_end), **figures(r)} for m, r in runs.items()})
+    return runs

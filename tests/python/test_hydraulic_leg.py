@@ -6,6 +6,7 @@ each joint driven by the EhsvActuator FMU's motion port through a lever.
   archive: trunk height on its command, rod forces inside what the supply and the relief
   valves allow, pressures under the relief setting, MuJoCo's tendon (the drawn cylinder)
   as long as the lever's law says,
+* the same with solver.method = fixed_cost,
 * the quadruped (68 kg, 12 actuators) holds its stance under its own weight (0.4 s),
 * the same leg run against the Python stand-in of the port, so that the coupling code is
   exercised even where the archive has no port.
@@ -118,6 +119,19 @@ def test_leg_stands_up_and_holds_its_trunk(version):
     r = hydraulic_leg.run(short=True, kind="fmu", version=version, render=False)
     assert r.kind == "fmu"
     _check_leg(r)
+
+
+@pytest.mark.parametrize("version", ehsv.VERSIONS)
+def test_leg_holds_its_trunk_with_fixed_cost(version):
+    """The same stand-up and hold with solver.method = fixed_cost, within the same bounds
+    as exact (the co-simulation's error is the host's step, not the FMU's integrator);
+    the forces differ from exact's, or the method did not reach the instances."""
+    _require_port(version)
+    r = hydraulic_leg.run(short=True, kind="fmu", version=version, render=False, method="fixed_cost")
+    assert "solver.method = fixed_cost" in r.actuator_line
+    _check_leg(r)
+    exact = hydraulic_leg.run(short=True, kind="fmu", version=version, render=False)
+    assert (r.rec["F"] != exact.rec["F"]).any()
 
 
 def test_leg_with_the_stand_in():
