@@ -27,12 +27,13 @@ mod peer;
 mod reference;
 mod report;
 mod timing;
-mod workloads;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use ehsv_actuator::variables::{vr, VARIABLES};
+// The signals live in the crate's library: `step_profile` runs the same workloads.
+use ehsv_tests::workloads;
 use fmi::{Fmu, Version};
 use reference::Trace;
 use report::{PeerSummary, Row};
