@@ -37,7 +37,7 @@ use ehsv_tests::workloads;
 use fmi::{Fmu, Version};
 use reference::Trace;
 use report::{PeerSummary, Row};
-use timing::{Samples, Summary};
+use timing::{Repeats, Samples, Summary};
 use workloads::{Signal, Workload, I_AMPLITUDE};
 
 /// An output further than this fraction of its range from the reference (and further than
@@ -218,10 +218,10 @@ impl<'a> Case<'a> {
     ) -> Result<(Row, Trace), String> {
         let (w, h) = (self.w, self.h);
         let best = self.best_untimed_run(fmu)?;
-        let (timed, least) = self.timed_runs(fmu)?;
-        let step_cpu = least.summary();
+        let timed = self.timed_runs(fmu)?;
+        let step_cpu = timed.cpu.shortest.summary();
         let slowest = match first_trace {
-            None => Some(self.diagnose_slowest(&least, step_cpu)?),
+            None => Some(self.diagnose_slowest(&timed.cpu.shortest, step_cpu)?),
             Some(_) => None,
         };
         if first_trace.is_some_and(|first| *first != best.trace) {
@@ -245,8 +245,11 @@ impl<'a> Case<'a> {
             rtf_wall: sim_time / best.wall,
             rtf_cpu: sim_time / best.cpu,
             step_cpu,
-            step_cpu_one_run: timed.step_cpu.summary().max,
-            step_wall: timed.step_wall.summary(),
+            step_cpu_raw: timed.cpu.longest,
+            step_wall_raw: timed.wall.longest,
+            lock_step: timed
+                .lock_step
+                .map(|r| report::LockStep { work: r.shortest.summary(), raw: r.longest }),
             slowest,
             deviation: Some(dev),
             reference_spread: self.reference_spread,
@@ -268,17 +271,34 @@ impl<'a> Case<'a> {
         Ok(best.unwrap())
     }
 
-    /// The first timed run, and each call's shortest CPU time over `repeat` timed runs.
-    /// The first run's slowest calls show what this machine did to them; the shortest
-    /// time of each call is the work it takes.
-    fn timed_runs(&self, fmu: &Fmu) -> Result<(fmu_run::FmuRun, Samples), String> {
+    /// `repeat` timed runs: per doStep (and per lock-step of all instances, if more than one)
+    /// the shortest time over the runs, the work of the call, and the longest sample of all.
+    /// A run preallocates its samples, so the timed loop itself allocates nothing.
+    fn timed_runs(&self, fmu: &Fmu) -> Result<TimedRuns, String> {
         let (w, h, steps) = (self.w, self.h, self.steps);
-        let timed = fmu_run::run(fmu, w, h, steps, true)?;
-        let mut least = timed.step_cpu.clone();
-        for _ in 1..self.o.repeat {
-            least.keep_shorter(&fmu_run::run(fmu, w, h, steps, true)?.step_cpu);
+        let legs = w.legs.len();
+        let mut runs: Option<TimedRuns> = None;
+        for _ in 0..self.o.repeat {
+            let run = fmu_run::run(fmu, w, h, steps, true)?;
+            let lock_step = (legs > 1).then(|| run.step_cpu.lock_steps(legs));
+            match runs.as_mut() {
+                None => {
+                    runs = Some(TimedRuns {
+                        cpu: Repeats::new(run.step_cpu),
+                        wall: Repeats::new(run.step_wall),
+                        lock_step: lock_step.map(Repeats::new),
+                    })
+                }
+                Some(r) => {
+                    r.cpu.add(&run.step_cpu);
+                    r.wall.add(&run.step_wall);
+                    if let (Some(r), Some(l)) = (r.lock_step.as_mut(), lock_step) {
+                        r.add(&l);
+                    }
+                }
+            }
         }
-        Ok((timed, least))
+        runs.ok_or_else(|| "no timed run".into())
     }
 
     /// The slowest doStep and, if that was a first step, the slowest after the first steps,
@@ -385,6 +405,14 @@ impl<'a> Case<'a> {
     }
 }
 
+/// The doStep times of a workload's timed runs, in thread CPU and wall time, and for a
+/// lock-step of several instances the thread CPU time of each step's doSteps together.
+struct TimedRuns {
+    cpu: Repeats,
+    wall: Repeats,
+    lock_step: Option<Repeats>,
+}
+
 /// The peer on every leg of the workload (its accuracy on the first).
 fn run_peer(
     o: &Options,
@@ -482,6 +510,7 @@ fn print_preamble(o: &Options) {
         "{} s simulated per run, best of {} untimed run(s); peer rtol {:e}",
         o.t_end, o.repeat, o.peer_rtol
     );
+    println!("{}", report::timed_runs_note(o.repeat));
     println!("{}", workloads::DESCRIPTION);
     println!();
     report::header();

@@ -47,6 +47,17 @@ impl Samples {
         }
     }
 
+    /// The longest sample (0 if none).
+    pub fn longest(&self) -> f64 {
+        self.values.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// The sums of each `legs` consecutive calls: with the calls of a lock-step run (step
+    /// after step, leg after leg), the time of each step's doSteps of all instances together.
+    pub fn lock_steps(&self, legs: usize) -> Samples {
+        Samples { values: self.values.chunks(legs.max(1)).map(|c| c.iter().sum()).collect() }
+    }
+
     /// The slowest call from call `first` on: its index and time.
     pub fn slowest_from(&self, first: usize) -> Option<(usize, f64)> {
         (first..self.values.len())
@@ -65,6 +76,30 @@ impl Samples {
         sorted.sort_by(f64::total_cmp);
         let rank = ((0.999 * n as f64).ceil() as usize).clamp(1, n) - 1;
         Summary { mean, p999: sorted[rank], max: sorted[n - 1], slowest }
+    }
+}
+
+/// The times of the same calls over several timed runs. Every workload is deterministic: call
+/// k does the same work in every run, so its shortest time over the runs is that work. What a
+/// run adds on top (interrupts, hypervisor stalls and preemption, which the clock charges to
+/// whichever thread is running) belongs to the machine, not to the FMU, and shows only in the
+/// longest sample of all.
+pub struct Repeats {
+    /// Call by call, the shortest time over the runs: the work of each call.
+    pub shortest: Samples,
+    /// The longest single sample of any run: the slowest call as the machine ran it.
+    pub longest: f64,
+}
+
+impl Repeats {
+    pub fn new(first_run: Samples) -> Repeats {
+        Repeats { longest: first_run.longest(), shortest: first_run }
+    }
+
+    /// Takes in another run of the same calls.
+    pub fn add(&mut self, run: &Samples) {
+        self.longest = self.longest.max(run.longest());
+        self.shortest.keep_shorter(run);
     }
 }
 
