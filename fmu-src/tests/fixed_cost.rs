@@ -84,10 +84,9 @@ fn compare_with(
 
 /// Driver, coil and valve (the first three outputs) go by exact propagators between
 /// boundaries, their mode changes placed by interpolation: within 1e-4 of their range on
-/// every linear driver. The piston within 1e-3. The pressures (not asserted here: 2e-2 to
-/// 4e-2 of their range at 25 us internal steps on the end-stop impacts of the 2 Hz runs
-/// and the reversal transients of the squares; see docs/solvers.md) bounded by the relief
-/// envelope.
+/// every linear driver. The piston within 5e-4. The pressures within 2e-3 on the 20 Hz
+/// waves; the 2 Hz waves drive the piston into its end stops, whose impacts a fixed step
+/// meets within a fraction of a step (1.5e-2 of the pressures' range at most).
 #[test]
 fn fixed_cost_follows_exact_on_sines_and_squares() {
     for kind in ["ideal_current", "voltage", "opamp_pi", "industrial"] {
@@ -98,14 +97,19 @@ fn fixed_cost_follows_exact_on_sines_and_squares() {
             for (shape, input) in runs {
                 let e = compare(&[driver(kind)], 0.2, 1e-4, input);
                 println!("{kind} {shape} {hz} Hz: {}", show(&e));
-                assert!(e[..3].iter().all(|&x| x < 1e-4), "{kind} {shape} {hz} Hz: {}", show(&e));
-                assert!(e[5] < 1e-3, "{kind} {shape} {hz} Hz: {}", show(&e));
-                assert!(e[3] < 0.1 && e[4] < 0.1, "{kind} {shape} {hz} Hz: {}", show(&e));
+                let pressures = if hz > 10.0 { 2e-3 } else { 3e-2 };
+                let case = format!("{kind} {shape} {hz} Hz: {}", show(&e));
+                assert!(e[..3].iter().all(|&x| x < 1e-4), "{case}");
+                assert!(e[5] < 5e-4, "{case}");
+                assert!(e[3] < pressures && e[4] < pressures, "{case}");
             }
         }
     }
 }
 
+/// The loops: the piston within 1e-3 of its range (the position loop within 1e-6), every
+/// output within 5e-2; the H-bridge's PWM spans are exact for driver and coil, the piston
+/// within 2e-4.
 #[test]
 fn fixed_cost_follows_exact_in_the_loops() {
     let s = sine(5.0, 2e-4);
@@ -116,14 +120,15 @@ fn fixed_cost_follows_exact_in_the_loops() {
     let position =
         compare(&[driver("opamp_pi"), control_mode("position")], 1.0, 1e-4, &|t| (vr::X_REF, s(t)));
     println!("position loop: {}", show(&position));
+    assert!(position[5] < 1e-6, "{}", show(&position));
     for e in [flow, position] {
-        assert!(e[5] < 2e-3, "{}", show(&e));
-        assert!(e.iter().all(|&x| x < 0.1), "{}", show(&e));
+        assert!(e[5] < 1e-3, "{}", show(&e));
+        assert!(e.iter().all(|&x| x < 5e-2), "{}", show(&e));
     }
     let s = sine(5.0, 5e-3);
     let e = compare(&[driver("hbridge_pid")], 0.2, 1e-4, &|t| (vr::I_REF, s(t)));
     println!("hbridge: {}", show(&e));
-    assert!(e[..3].iter().all(|&x| x < 1e-9) && e[5] < 1e-4, "{}", show(&e));
+    assert!(e[..3].iter().all(|&x| x < 1e-9) && e[5] < 2e-4, "{}", show(&e));
 }
 
 /// The outputs' largest error over their range, fixed_cost with internal steps of at most
@@ -134,21 +139,22 @@ fn error_at_internal_step(kind: &str, h_internal: f64) -> [f64; 6] {
     compare_with(&[driver(kind)], &fixed, 0.1, 1e-4, &|t| (vr::I_REF, s(t)))
 }
 
-/// ROS2 is of order 2: halving `solver.h_internal` from 25 us divides the pressures' and
-/// the position's error by about 4 until the exact method's own tolerance (solver.rtol
-/// 1e-7) is reached.
+/// Shrinking `solver.h_internal` from 25 to 6.25 us makes the pressures and the position at
+/// least 4 times more accurate. Not the 64 of the cylinder step's own order 3
+/// (`fixed_cost_cylinder` tests): at these steps the whole model's error comes from what a
+/// fixed step meets within a step (the driver's mode changes placed by interpolation, the
+/// friction's steep zero-velocity region at every reversal of the piston).
 #[test]
-fn fixed_cost_converges_with_order_two_as_the_internal_step_shrinks() {
+fn fixed_cost_converges_as_the_internal_step_shrinks() {
     let errors: Vec<[f64; 6]> =
         [2.5e-5, 1.25e-5, 6.25e-6].iter().map(|&h| error_at_internal_step("opamp_pi", h)).collect();
     for k in [3, 4, 5] {
-        let order = |a: f64, b: f64| (a / b).log2();
-        let (o1, o2) = (order(errors[0][k], errors[1][k]), order(errors[1][k], errors[2][k]));
+        let gain = errors[0][k] / errors[2][k];
         println!(
-            "output {k}: {:.1e} {:.1e} {:.1e}, orders {o1:.2} {o2:.2}",
+            "output {k}: {:.1e} {:.1e} {:.1e}, {gain:.1} times more accurate at 6.25 us",
             errors[0][k], errors[1][k], errors[2][k]
         );
-        assert!(o1 > 1.7 && o2 > 1.7, "output {k}: orders {o1} {o2}");
+        assert!(gain > 4.0, "output {k}: {gain}");
     }
 }
 

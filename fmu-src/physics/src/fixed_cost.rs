@@ -7,22 +7,17 @@
 //!   and span, built once), then the driver mode and valve stops are chosen again for the
 //!   state reached ([`Actuator::settle`]): mode changes fall on step boundaries, with no
 //!   event search;
-//! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one step of ROS2 (Verwer's
-//!   L-stable two-stage Rosenbrock method of order 2, order 2 for any matrix in W, so the
-//!   spool's time dependence needs no df/dt term) with the analytic Jacobian and one 4x4
-//!   LU; the spool moves linearly between the step's ends. No error control, no rejection.
+//! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one step of
+//!   [`super::fixed_cost_cylinder`] (Rodas3, ROS2 where Rodas3 overshoots), the spool on
+//!   the cubic through its positions and velocities at the step's ends.
 
 use super::actuator::{current_system, Actuator};
-use super::cylinder_jacobian::linearise;
+use super::fixed_cost_cylinder as cylinder_step;
 use super::integrator::{Integrator, Segment};
-use super::lu4::Lu4;
 use super::*;
 
 /// Mode changes placed inside one internal step at most; more are decided at its end.
 const MAX_SWITCHES: usize = 3;
-
-/// ROS2's gamma, 1 + 1/sqrt(2): L-stable.
-const GAMMA: f64 = 1.707_106_781_186_547_5;
 
 /// The fixed-cost integrator's own state: the propagators it built (a pure cache).
 #[derive(Clone)]
@@ -59,9 +54,9 @@ impl Integrator for FixedCostIntegrator {
         let n = self.internal_steps(segment.span);
         let h = segment.span / n as f64;
         for _ in 0..n {
-            let xs0 = actuator.z[XS];
+            let start = spool_motion(actuator);
             self.driver_and_valve(actuator, h, events)?;
-            ros2_step(actuator, (xs0, actuator.z[XS]), h, inputs)?;
+            cylinder_step::step(actuator, (start, spool_motion(actuator)), h, inputs)?;
         }
         Ok(())
     }
@@ -170,122 +165,10 @@ fn first_crossing(actuator: &Actuator, z1: &Vector) -> Option<f64> {
         .reduce(f64::min)
 }
 
-/// One ROS2 step of the cylinder over `h`, the spool going linearly from `xs.0` to `xs.1`:
-/// `W = I - gamma h J`, `k1 = W^-1 f(y0, t0)`, `k2 = W^-1 (f(y0 + h k1, t0 + h) - 2 k1)`,
-/// `y1 = y0 + h (3 k1 + k2) / 2`.
-fn ros2_step(
-    actuator: &mut Actuator,
-    xs: (f64, f64),
-    h: f64,
-    inputs: &HeldInputs,
-) -> Result<(), String> {
-    let params = &actuator.params.cylinder;
-    let y0 = actuator.cylinder.state.to_array();
-    let (f0, jac, _) = linearise(params, &y0, xs.0, inputs.p_supply, inputs.load);
-    let mut w = jac;
-    for (i, row) in w.iter_mut().enumerate() {
-        for (j, a) in row.iter_mut().enumerate() {
-            *a = f64::from(u8::from(i == j)) - GAMMA * h * *a;
-        }
-    }
-    let lu = Lu4::factor(w).ok_or("the cylinder's Rosenbrock matrix is singular; step refused")?;
-    let k1 = lu.solve(f0);
-    let mut y = y0;
-    for i in 0..4 {
-        y[i] += h * k1[i];
-    }
-    let f1 = cylinder::derivatives(
-        params,
-        &CylinderState::from_array(&y),
-        xs.1,
-        inputs.p_supply,
-        inputs.load,
-    );
-    let mut rhs = f1;
-    for i in 0..4 {
-        rhs[i] -= 2.0 * k1[i];
-    }
-    let k2 = lu.solve(rhs);
-    let mut y1 = y0;
-    for i in 0..4 {
-        y1[i] += 0.5 * h * (3.0 * k1[i] + k2[i]);
-    }
-    // The chambers' bulk modulus fades to zero at the cavitation floor, which the exact
-    // solution never crosses; a step without error control can overshoot it: put back.
-    for p in [cylinder::PA, cylinder::PB] {
-        y1[p] = y1[p].max(params.p_cavitation);
-    }
-    if y1.iter().any(|v| !v.is_finite()) {
-        return Err("the cylinder's state is not finite; step refused".into());
-    }
-    actuator.cylinder.state = CylinderState::from_array(&y1);
-    let work = &mut actuator.work;
-    work.steps_accepted += 1;
-    (work.jacobians, work.factorisations) = (work.jacobians + 1, work.factorisations + 1);
-    work.function_evaluations += 1;
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::cylinder::equilibrium;
-
-    /// Why a naive fixed step fails here: with the spool open (0.3 mm) and chamber A near
-    /// the supply pressure (a piston pushing at full command), the port's laminar slope puts
-    /// the chambers' rates at -4e4 to -6e4 1/s (the stiffest, -1.4e5, elsewhere on the
-    /// stroke); explicit Euler at 1e-4 s (|1 + h lambda| >= 3) overshoots and leaves the
-    /// range the pressures can physically reach (between tank and supply) by several bar
-    /// within 2 ms, where ROS2 (80 internal steps of 25 us) keeps both inside it. The
-    /// orifice law's square root flattens as the pressure drop grows, which is what stops
-    /// Euler's growth here short of overflow.
-    #[test]
-    fn explicit_euler_at_a_tenth_of_a_millisecond_leaves_the_physical_range() {
-        let c = Coefficients::new(&Params::PAPER).unwrap();
-        let params = &c.cylinder;
-        let p_supply = Inputs::PAPER.p_supply;
-        let xs = 3e-4;
-        let mut start = equilibrium(params, p_supply, 0.0).to_array();
-        (start[cylinder::PA], start[cylinder::PB]) = (p_supply - 1e3, 1e3);
-        let (_, jac, _) = linearise(params, &start, xs, p_supply, 0.0);
-        assert!(jac[cylinder::PA][cylinder::PA] * 1e-4 < -2.0, "{:e}", jac[0][0]);
-        let mut euler = start;
-        let mut euler_worst: f64 = 0.0;
-        for _ in 0..20 {
-            let state = CylinderState::from_array(&euler);
-            let f = cylinder::derivatives(params, &state, xs, p_supply, 0.0);
-            for (y, d) in euler.iter_mut().zip(f) {
-                *y += 1e-4 * d;
-            }
-            let outside = |p: f64| (p - p_supply).max(params.p_tank - p).max(0.0);
-            euler_worst = euler_worst.max(outside(euler[0])).max(outside(euler[1]));
-        }
-        let mut y = start;
-        for _ in 0..80 {
-            y = ros2(params, &y, xs, p_supply, 25e-6);
-        }
-        println!("explicit Euler: {euler_worst:e} Pa outside [tank, supply]");
-        assert!(euler_worst > 1e5, "explicit Euler: {euler_worst:e} Pa outside");
-        for p in [y[cylinder::PA], y[cylinder::PB]] {
-            assert!((params.p_cavitation..=p_supply + 1e3).contains(&p), "ROS2: {p:e}");
-        }
-    }
-
-    /// One ROS2 step of `h` with the spool held at `xs` (as `ros2_step` takes it).
-    fn ros2(params: &CylinderParams, y: &[f64; 4], xs: f64, p_supply: f64, h: f64) -> [f64; 4] {
-        let (f0, jac, _) = linearise(params, y, xs, p_supply, 0.0);
-        let mut w = jac;
-        for (i, row) in w.iter_mut().enumerate() {
-            for (j, a) in row.iter_mut().enumerate() {
-                *a = f64::from(u8::from(i == j)) - GAMMA * h * *a;
-            }
-        }
-        let lu = Lu4::factor(w).unwrap();
-        let k1 = lu.solve(f0);
-        let y_mid: [f64; 4] = std::array::from_fn(|i| y[i] + h * k1[i]);
-        let mid = CylinderState::from_array(&y_mid);
-        let f1 = cylinder::derivatives(params, &mid, xs, p_supply, 0.0);
-        let k2 = lu.solve(std::array::from_fn(|i| f1[i] - 2.0 * k1[i]));
-        std::array::from_fn(|i| y[i] + 0.5 * h * (3.0 * k1[i] + k2[i]))
-    }
+/// The spool's position and velocity in the actuator's current mode.
+fn spool_motion(actuator: &Actuator) -> [f64; 2] {
+    let c = &actuator.params;
+    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    let [x, v, _] = sys.spool_motion(&actuator.z);
+    [x, v]
 }

@@ -24,6 +24,7 @@ mod driven_cylinder;
 mod driver;
 mod exact_integrator;
 mod fixed_cost;
+mod fixed_cost_cylinder;
 mod hbridge;
 mod integrator;
 mod lu4;

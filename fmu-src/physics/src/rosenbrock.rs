@@ -495,6 +495,25 @@ fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
     Ok(None)
 }
 
+/// One Rodas3 step of `h` from `y` without step control (the fixed-cost integrator's), the
+/// spool on `spool` (position and rate at a time into the step), lifted to the cavitation
+/// floor; with its embedded error estimate scaled by `rtol` ([`STATE_SCALE`]), infinite if
+/// a stage was not finite.
+pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
+    params: &CylinderParams,
+    (y, h): (&Vec4, f64),
+    spool: &F,
+    (p_supply, load): (f64, f64),
+    rtol: f64,
+    stats: &mut Stats,
+) -> Result<(Vec4, f64), String> {
+    let model = Rhs { params, p_supply, load, spool };
+    let here = model.linearise(0.0, y, stats);
+    let (mut y_new, err) = rosenbrock_step(&RODAS3, &model, &here, (0.0, y, h), rtol, stats)?;
+    clamp_to_floor(params, &mut y_new, stats);
+    Ok((y_new, err))
+}
+
 /// x^(1/4) by two square roots (exact to rounding, a fraction of `powf`'s cost).
 fn fourth_root(x: f64) -> f64 {
     x.sqrt().sqrt()
