@@ -40,7 +40,12 @@ impl FixedCostIntegrator {
 
 /// The propagator cache's name for the actuator's (mode, stops) pair.
 fn propagator_key(actuator: &Actuator) -> usize {
-    actuator.mode.index() + MODES.len() * actuator.stops.code()
+    mode_key(actuator.mode, actuator.stops)
+}
+
+/// The propagator cache's name for a (mode, stops) pair.
+fn mode_key(mode: Mode, stops: valve::Stops) -> usize {
+    mode.index() + MODES.len() * stops.code()
 }
 
 impl Integrator for FixedCostIntegrator {
@@ -61,15 +66,19 @@ impl Integrator for FixedCostIntegrator {
         Ok(())
     }
 
-    /// The propagators whole segments need (loop periods and communication steps).
+    /// The propagators of whole internal steps over the communication step and the loop
+    /// period, for every mode at the stops the probe ended in: a mode's first use inside a
+    /// doStep would otherwise build its exponential there (the slowest doSteps).
     fn prepare(&mut self, actuator: &Actuator, step: f64) {
         let c = &actuator.params;
         let looping = c.loops.mode != ControlMode::Current;
         for span in [Some(step), looping.then(|| 1.0 / c.loops.f_sample)].into_iter().flatten() {
-            let n = self.internal_steps(span);
-            let key = propagator_key(actuator);
-            let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
-            let _ = self.cache.get(key, sys, span / n as f64, true, 1);
+            let h = span / self.internal_steps(span) as f64;
+            for mode in MODES.into_iter().filter(|&m| m != Mode::Switched) {
+                let sys = actuator.systems[mode.index()].with_stops(c, actuator.stops);
+                // A mode this driver never enters may have no propagator: nothing to build.
+                let _ = self.cache.get(mode_key(mode, actuator.stops), &sys, h, true, 1);
+            }
         }
     }
 

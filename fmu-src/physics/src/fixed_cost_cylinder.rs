@@ -135,6 +135,9 @@ mod tests {
         }
     }
 
+    /// One internal step: parameters, state, spool ends, step, supply pressure and load.
+    type StepFn<'a> = dyn Fn(&CylinderParams, &Vec4, SpoolEnds, f64, (f64, f64)) -> Vec4 + 'a;
+
     /// A smooth spool path: opening from 0.1 to 0.3 mm over 4 ms, position and velocity.
     fn opening(t: f64) -> [f64; 2] {
         let s = t / 4e-3;
@@ -143,10 +146,7 @@ mod tests {
 
     /// The state after `n` steps of `step` over 4 ms from a piston already moving, relative
     /// to the state scale (1 MPa, 10 mm, 0.1 m/s).
-    fn run_opening(
-        n: usize,
-        step: &dyn Fn(&CylinderParams, &Vec4, SpoolEnds, f64, (f64, f64)) -> Vec4,
-    ) -> Vec4 {
+    fn run_opening(n: usize, step: &StepFn) -> Vec4 {
         let (params, p_supply) = paper_cylinder();
         let mut y = equilibrium(&params, p_supply, 0.0).to_array();
         y[cylinder::V] = 0.05;
@@ -161,9 +161,7 @@ mod tests {
     /// The order of a step on a smooth run (no contact, no cavitation, the piston moving
     /// away from the friction's steep zero-velocity region): the error of 64, 128, 256 steps
     /// (62.5 to 15.6 us) against 8192.
-    fn measured_orders(
-        step: &dyn Fn(&CylinderParams, &Vec4, SpoolEnds, f64, (f64, f64)) -> Vec4,
-    ) -> [f64; 2] {
+    fn measured_orders(step: &StepFn) -> [f64; 2] {
         let reference = run_opening(8192, step);
         let error = |n| {
             let y = run_opening(n, step);
