@@ -6,8 +6,8 @@ The tests are test_figures.py's own functions, imported: pytest collects them he
 second time, and here they ask for this module's ``run``, which sets solver.method =
 fixed_cost before initialisation. A band is never widened for fixed_cost.
 
-Rows 4, 5, 8, 9 and 11 are cosim-examples/figures.py's (``--method fixed_cost``), not
-test_figures.py's.
+All eleven rows, 4, 5, 8, 9 and 11 included, run on fixed_cost through the figures
+command (test_figures_command.py, ``--method fixed_cost``).
 """
 
 import functools
