@@ -123,9 +123,9 @@ ROWS = (
     # the H-bridge's i_coil sample carries part of its PWM ripple (1.2e-4 at that phase).
     Row(10, "all 5 drivers, steady: Q_valve/i_coil (m3/s per mA)", lambda v: f"{v[0]:.6e} .. {v[1]:.6e}",
         lambda v: all(abs(g / (flow_gain() * 1e-3) - 1) <= 5e-4 for g in v), "K3 K1/Kw +-0.05 %"),
-    # Row 11: exact in steady motion and in the equations; what is left is Rodas4's error
-    # (rtol 1e-7; measured 1.4e-9), and for the balance Rodas4 and the trapezoids on 10 us samples
-    # (measured 1.5e-10).
+    # Row 11: exact in steady motion and in the equations; what is left is the integrator's
+    # error (Rodas4 at rtol 1e-7, or fixed_cost's Rodas3), and for the balance that and the
+    # trapezoids on 10 us samples.
     Row(11, "flow loop, steady: |v - Q_A/A_A|/v; volume balance", lambda v: f"{v[0]:.1e}; {v[1]:.1e}",
         lambda v: v[0] <= 1e-7 and v[1] <= 1e-9, "<= 1e-7; <= 1e-9"),
 )  # fmt: skip
