@@ -121,10 +121,14 @@ impl FixedCostIntegrator {
                 z1 = self.propagate(actuator, tau, false)?;
                 left -= tau;
             }
-            let before = actuator.mode;
-            driver::clip_overshoot(&actuator.params, &mut z1, before, crossing.is_some());
-            actuator.settle(&mut z1);
-            driver::count_switch(events, before, actuator.mode);
+            // Inside every guard of its mode the state stays in that mode: nothing to clip
+            // or choose again.
+            if crossing.is_some() || !inside_guards(actuator, &z1) {
+                let before = actuator.mode;
+                driver::clip_overshoot(&actuator.params, &mut z1, before, crossing.is_some());
+                actuator.settle(&mut z1);
+                driver::count_switch(events, before, actuator.mode);
+            }
             actuator.z = z1;
             if crossing.is_none() || left <= 0.0 {
                 break;
@@ -172,6 +176,13 @@ fn first_crossing(actuator: &Actuator, z1: &Vector) -> Option<f64> {
             (v0 < 0.0 && v1 > 0.0).then(|| v0 / (v0 - v1))
         })
         .reduce(f64::min)
+}
+
+/// Whether every guard of the actuator's mode is negative at `z`.
+fn inside_guards(actuator: &Actuator, z: &Vector) -> bool {
+    let c = &actuator.params;
+    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    (0..sys.n_guards).all(|g| sys.guard_value(g, z) < 0.0)
 }
 
 /// The spool's position and velocity in the actuator's current mode.
