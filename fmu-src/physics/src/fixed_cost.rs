@@ -4,12 +4,13 @@
 //! of 50 us gives two steps of 25 us, and where the internal step divides the
 //! communication step the cuts do not depend on it. Per internal step:
 //! * driver, coil and valve go by the mode's propagator over the step (cached per mode
-//!   and span, built once), then the driver mode and valve stops are chosen again for the
-//!   state reached ([`Actuator::settle`]): mode changes fall on step boundaries, with no
-//!   event search;
+//!   and span; the whole steps' built when the first step is prepared); a guard that
+//!   crossed inside the step is placed by one linear interpolation, the mode chosen again
+//!   there ([`Actuator::settle`]) and the rest of the step taken in the new one: no event
+//!   search;
 //! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one step of
-//!   [`super::fixed_cost_cylinder`] (Rodas3, ROS2 where Rodas3 overshoots), the spool on
-//!   the cubic through its positions and velocities at the step's ends.
+//!   [`super::fixed_cost_cylinder`] (Rodas3; two half steps where one crosses a kink), the
+//!   spool on the cubic through its positions and velocities at the step's ends.
 
 use super::actuator::{current_system, Actuator};
 use super::fixed_cost_cylinder as cylinder_step;
