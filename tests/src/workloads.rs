@@ -93,6 +93,8 @@ pub struct Workload {
     pub legs: Vec<Signal>,
     /// `solver.rtol` of every instance (None: the FMU's default).
     pub solver_rtol: Option<f64>,
+    /// `solver.h_internal` of every instance (None: the FMU's default; fixed_cost reads it).
+    pub h_internal: Option<f64>,
     /// `solver.method` of every instance ([`EXACT`] or [`FIXED_COST`]).
     pub solver_method: i64,
 }
@@ -146,6 +148,7 @@ impl Workload {
             v_supply,
             legs: vec![s],
             solver_rtol: None,
+            h_internal: None,
             solver_method: EXACT,
         }
     }
@@ -171,6 +174,7 @@ impl Workload {
     pub fn reals(&self) -> Vec<(usize, f64)> {
         let mut reals = vec![(vr::V_SUPPLY, self.v_supply)];
         reals.extend(self.solver_rtol.map(|rtol| (vr::SOLVER_RTOL, rtol)));
+        reals.extend(self.h_internal.map(|h| (vr::SOLVER_H_INTERNAL, h)));
         reals
     }
 
@@ -214,6 +218,7 @@ pub fn all() -> Vec<Workload> {
         v_supply: 72.0,
         legs: (0..LEGS).map(|l| Signal::Gait(l as f64 * GAIT_PERIOD / LEGS as f64)).collect(),
         solver_rtol: None,
+        h_internal: None,
         solver_method: EXACT,
     });
     w

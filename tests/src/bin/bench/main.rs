@@ -73,6 +73,8 @@ struct Options {
     all_h: bool,
     /// `solver.rtol` of the FMU (None: its default).
     fmu_rtol: Option<f64>,
+    /// `solver.h_internal` of the FMU (None: its default).
+    h_internal: Option<f64>,
 }
 
 fn default_library() -> PathBuf {
@@ -105,6 +107,7 @@ fn parse() -> Result<Options, String> {
         require_peer: false,
         all_h: false,
         fmu_rtol: None,
+        h_internal: None,
     };
     let mut args = std::env::args().skip(1);
     let number = |v: Option<String>, what: &str| -> Result<f64, String> {
@@ -147,6 +150,7 @@ fn parse() -> Result<Options, String> {
             "--peer-rtol" => o.peer_rtol = number(args.next(), "--peer-rtol")?,
             "--reference-rtol" => o.reference_rtol = number(args.next(), "--reference-rtol")?,
             "--fmu-rtol" => o.fmu_rtol = Some(number(args.next(), "--fmu-rtol")?),
+            "--h-internal" => o.h_internal = Some(number(args.next(), "--h-internal")?),
             "--no-peer" => o.peer = false,
             "--require-peer" => o.require_peer = true,
             "--all-h" => o.all_h = true,
@@ -452,7 +456,7 @@ fn main() -> ExitCode {
             if !e.is_empty() {
                 eprintln!("bench: {e}");
             }
-            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--fmu-rtol R] [--no-peer] [--require-peer] [--all-h] [--lib PATH]");
+            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--fmu-rtol R] [--h-internal S] [--no-peer] [--require-peer] [--all-h] [--lib PATH]");
             return if e.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
         }
     };
@@ -534,7 +538,7 @@ fn measure_all(o: &Options, fmus: &[Fmu], cvode: Option<&peer::Api>) -> Results 
     let mut results = Results::default();
     for &h in &o.steps {
         for w in workloads::all() {
-            let w = Workload { solver_rtol: o.fmu_rtol, ..w };
+            let w = Workload { solver_rtol: o.fmu_rtol, h_internal: o.h_internal, ..w };
             if !selected(o, &w, h) {
                 continue;
             }
