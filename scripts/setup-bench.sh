@@ -9,11 +9,4 @@ set -euo pipefail
 if ldconfig -p | grep -q 'libsundials_cvode\.so\.6 '; then
     exit 0
 fi
-if ! command -v apt-get >/dev/null; then
-    echo "setup-bench.sh: libsundials_cvode.so.6 not found and no apt-get; install SUNDIALS 6 CVODE" >&2
-    exit 1
-fi
-SUDO=""
-if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
-$SUDO apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends libsundials-cvode6
+"$(dirname "${BASH_SOURCE[0]}")/apt-install.sh" setup-bench libsundials-cvode6

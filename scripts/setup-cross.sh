@@ -21,18 +21,7 @@ APT_PACKAGES=(rustc-web cargo-web rust-web-src gcc-mingw-w64-x86-64 wine64 qemu-
     libc6-arm64-cross llvm binutils)
 PIP_PACKAGES=(ziglang==0.15.2 cargo-zigbuild==0.24.0)
 
-missing=()
-for p in "${APT_PACKAGES[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]})); then
-    sudo=""
-    [[ $(id -u) == 0 ]] || sudo="sudo"
-    echo "setup-cross: apt-get install ${missing[*]}" >&2
-    $sudo apt-get update -qq >&2
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
-        "${missing[@]}" >&2
-fi
+"$ROOT/scripts/apt-install.sh" setup-cross "${APT_PACKAGES[@]}"
 
 "$ROOT/scripts/setup-venv.sh"
 if ! "$ROOT/.venv/bin/python" -m pip show --quiet "${PIP_PACKAGES[@]%%==*}" >/dev/null 2>&1; then

@@ -11,18 +11,6 @@
 # the picture was skipped and why.
 set -euo pipefail
 
-APT_PACKAGES=(libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libosmesa6)
-
-missing=()
-for p in "${APT_PACKAGES[@]}"; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if ((${#missing[@]})); then
-    sudo=""
-    [[ $(id -u) == 0 ]] || sudo="sudo"
-    echo "setup-gl: apt-get install ${missing[*]}" >&2
-    $sudo apt-get update -qq >&2
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
-        "${missing[@]}" >&2
-fi
+"$(dirname "${BASH_SOURCE[0]}")/apt-install.sh" setup-gl \
+    libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libosmesa6
 echo "setup-gl: ready" >&2
