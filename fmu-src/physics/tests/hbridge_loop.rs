@@ -7,7 +7,9 @@
 //! device). Also its saturation flag, its state record (save, restore, refuse a corrupted
 //! one) and the bound on the PWM instants of one step.
 
-use ehsv_physics::bytes::ByteReader;
+mod common;
+
+use common::{restore, save, within};
 use ehsv_physics::{DriverKind, HBridgeParams, Inputs, Params, Physics};
 
 fn bridge_params(feedforward: bool) -> Params {
@@ -186,16 +188,6 @@ fn current_loop_and_pwm_follow_the_documented_digital_pi() {
 /// valve stops (a byte each), then the 9 values of the augmented state.
 const HBRIDGE_FLAGS: usize = 2 + 9 * 8;
 
-fn save(physics: &Physics) -> Vec<u8> {
-    let mut bytes = Vec::new();
-    physics.write_bytes(&mut bytes);
-    bytes
-}
-
-fn restore(p: &Params, i: &Inputs, bytes: &[u8]) -> Result<Physics, String> {
-    Physics::read_bytes(p, i, &mut ByteReader::new(bytes))
-}
-
 /// A state saved at any point of a PWM run (bridge high or low, commands in force or
 /// pending, at a rail) is restored to the same bytes and continues bit for bit; also with
 /// the supply at 0 V, where the duty cycle is 0.
@@ -259,17 +251,6 @@ fn corrupted_bridge_records_are_refused() {
             assert!(result.is_err(), "counter {counter} = {value} was accepted");
         }
     }
-}
-
-/// Runs `f` on its own thread and gives up after `seconds` (a step that is not refused may
-/// run for minutes).
-fn within<T: Send + 'static>(seconds: f64, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    rx.recv_timeout(std::time::Duration::from_secs_f64(seconds))
-        .unwrap_or_else(|_| panic!("no answer within {seconds} s"))
 }
 
 /// A step that would hold more than 10^7 PWM and sampling instants (at 20 kHz: three

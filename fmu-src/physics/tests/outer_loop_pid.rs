@@ -7,6 +7,9 @@
 //! every sample's command is seen at the communication point it falls on. Also the loop's
 //! state record and the bound on the samples of one step.
 
+mod common;
+
+use common::{save, within};
 use ehsv_physics::bytes::ByteReader;
 use ehsv_physics::{ControlMode, DriverKind, Inputs, Params, Physics};
 
@@ -126,12 +129,6 @@ fn flow_loop_is_the_documented_pid_with_its_feedforward() {
 /// bytes and 7 values).
 const OUTER_ACTIVE: usize = 2 + 9 * 8 + 2 + 7 * 8;
 
-fn save(physics: &Physics) -> Vec<u8> {
-    let mut bytes = Vec::new();
-    physics.write_bytes(&mut bytes);
-    bytes
-}
-
 /// A state saved while a loop runs restores to the same bytes and continues bit for bit;
 /// a record whose activity flag is neither 0 nor 1 is refused.
 #[test]
@@ -162,16 +159,6 @@ fn loop_states_restore_exactly_and_corrupted_ones_are_refused() {
             assert!(result.is_err(), "{mode:?}: activity flag {flag} accepted");
         }
     }
-}
-
-/// Runs `f` on its own thread and gives up after `seconds`.
-fn within<T: Send + 'static>(seconds: f64, f: impl FnOnce() -> T + Send + 'static) -> T {
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(f());
-    });
-    rx.recv_timeout(std::time::Duration::from_secs_f64(seconds))
-        .unwrap_or_else(|_| panic!("no answer within {seconds} s"))
 }
 
 /// A step holding more than 10^7 samples of the loop (20 kHz: from 500 s on) is refused at

@@ -3,6 +3,9 @@
 //! a state saved in any combination of held and free parts (flapper and spool each free or
 //! at either stop) is restored to the same bytes.
 
+mod common;
+
+use common::save;
 use ehsv_physics::bytes::ByteReader;
 use ehsv_physics::{DriverKind, Inputs, Params, Physics};
 
@@ -145,12 +148,6 @@ fn stops_never_reached_change_nothing() {
         );
         assert!((a.i_coil - b.i_coil).abs() <= 1e-9 * 20e-3, "step {k}: i_coil");
     }
-}
-
-fn save(physics: &Physics) -> Vec<u8> {
-    let mut bytes = Vec::new();
-    physics.write_bytes(&mut bytes);
-    bytes
 }
 
 /// Through the staircase with a 0.2 mm spool stop and a 30 um flapper stop, the spool

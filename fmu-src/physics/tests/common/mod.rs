@@ -1,0 +1,29 @@
+//! What the physics crate's integration tests share: saving and restoring a state's bytes,
+//! and a call that must answer within a time.
+#![allow(dead_code)]
+
+use ehsv_physics::bytes::ByteReader;
+use ehsv_physics::{Inputs, Params, Physics};
+
+/// The physics' state bytes.
+pub fn save(physics: &Physics) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    physics.write_bytes(&mut bytes);
+    bytes
+}
+
+/// An instance of `p` and `i` restored from `bytes`.
+pub fn restore(p: &Params, i: &Inputs, bytes: &[u8]) -> Result<Physics, String> {
+    Physics::read_bytes(p, i, &mut ByteReader::new(bytes))
+}
+
+/// Runs `f` on its own thread and gives up after `seconds` (a step that is not refused may
+/// run for minutes).
+pub fn within<T: Send + 'static>(seconds: f64, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs_f64(seconds))
+        .unwrap_or_else(|_| panic!("no answer within {seconds} s"))
+}
