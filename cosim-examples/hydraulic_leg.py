@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from ehsv import cli, robot
-from ehsv.robot import Hydraulics, Lever, LeverSet
+from ehsv.robot import Hydraulics, Lever, LeverSet, smooth
 
 L1 = L2 = 0.35  # thigh, shank (m)
 FOOT_R = 0.025
@@ -85,16 +85,6 @@ def mjcf() -> str:
     {robot.cylinder_tendon("knee_cyl")}
   </tendon>
 </mujoco>"""
-
-
-def smooth(t, t0, t1, a, b):
-    """a before t0, b after t1, a half-cosine between."""
-    if t <= t0:
-        return a
-    if t >= t1:
-        return b
-    s = (t - t0) / (t1 - t0)
-    return a + (b - a) * (1 - math.cos(math.pi * s)) / 2
 
 
 @dataclass(frozen=True)
@@ -316,13 +306,7 @@ def render_frames(model, r: LegRun) -> None:
     if p.hop is not None:
         times[p.hop + 0.38] = "crouch"
         times[s["hop_apex_t"]] = "hop, apex"
-    try:
-        for t, label in sorted(times.items()):
-            k = min(int(np.searchsorted(r.t, t)), len(r.t) - 1)
-            r.frames.append(cam.at(model, r.rec["qpos"][k]))
-            r.frame_labels.append(f"{r.t[k]:.2f} s: {label}")
-    finally:
-        cam.close()
+    cam.capture(model, r, times)
 
 
 def plot(r: LegRun, out: Path) -> None:
@@ -423,16 +407,8 @@ def figures(r: LegRun) -> dict[str, str]:
 
 def main(argv=None) -> int:
     ap = robot.parser(__doc__, 6.0, "0.6 s: stand up and hold (the test's run)", "hydraulic_leg.png")
-    args = ap.parse_args(argv)
-    version = cli.version(args)
-    if args.actuator == "fmu" and cli.archive_missing(version):
-        return 1
-
-    def one(method, render):
-        return run(args.duration, args.short, args.actuator, version, render=render, method=method)
-
-    robot.run_methods(args, one, report, plot, figures)
-    return 0
+    runs = robot.run_example(ap.parse_args(argv), run, report, plot, figures)
+    return 1 if runs is None else 0
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ehsv import cli, robot
-from ehsv.robot import Hydraulics, Lever, LeverSet
+from ehsv.robot import Hydraulics, Lever, LeverSet, smooth
 
 L1 = L2 = 0.35
 FOOT_R = 0.025
@@ -128,16 +128,6 @@ def mjcf() -> str:
     {tendons}
   </tendon>
 </mujoco>"""
-
-
-def smooth(t, t0, t1, a, b):
-    """a before t0, b from t1 on, a half-cosine between."""
-    if t >= t1:
-        return b
-    if t <= t0:
-        return a
-    s = (t - t0) / (t1 - t0)
-    return a + (b - a) * (1 - math.cos(math.pi * s)) / 2
 
 
 @dataclass(frozen=True)
@@ -312,16 +302,9 @@ def render_frames(model, r: QuadRun) -> None:
         t0 = p.trot[0] + 2.0
         times[t0 + 0.25 * p.swing / p.f_trot * 2] = "trot, LF+RH up"
         times[t0 + (0.5 + 0.25 * p.swing * 2) / p.f_trot] = "trot, RF+LH up"
-    trunk = model.body("trunk").id
-    try:
-        for t, label in sorted(times.items()):
-            if t > r.t[-1]:
-                continue
-            k = min(int(np.searchsorted(r.t, t)), len(r.t) - 1)
-            r.frames.append(cam.at(model, r.rec["qpos"][k], track_body=trunk))
-            r.frame_labels.append(f"{r.t[k]:.2f} s: {label}")
-    finally:
-        cam.close()
+    # A run that fell ended early: no pictures of what it did not reach.
+    reached = {t: label for t, label in times.items() if t <= r.t[-1]}
+    cam.capture(model, r, reached, track_body=model.body("trunk").id)
 
 
 def plot(r: QuadRun, out: Path) -> None:
@@ -410,16 +393,8 @@ def figures(r: QuadRun) -> dict[str, str]:
 
 def main(argv=None) -> int:
     ap = robot.parser(__doc__, 8.5, "0.4 s standing from the stance (the test's run)", "quadruped.png")
-    args = ap.parse_args(argv)
-    version = cli.version(args)
-    if args.actuator == "fmu" and cli.archive_missing(version):
-        return 1
-
-    def one(method, render):
-        return run(args.duration, args.short, args.actuator, version, render=render, method=method)
-
-    runs = robot.run_methods(args, one, report, plot, figures)
-    return 1 if any(r.fell for r in runs.values()) else 0
+    runs = robot.run_example(ap.parse_args(argv), run, report, plot, figures)
+    return 1 if runs is None or any(r.fell for r in runs.values()) else 0
 
 
 if __name__ == "__main__":

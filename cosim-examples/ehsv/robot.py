@@ -23,11 +23,13 @@ What cosim-examples/hydraulic_leg.py and quadruped.py share:
   -> qfrc_applied -> mj_step2), the joint commands from a controller at a lower rate,
   recording, rendering at chosen instants, and the wall time split into MuJoCo, the
   actuator calls and the Python around them,
+* ``smooth``: the half-cosine ramps of the examples' plans,
 * ``leg_ik``: the 2-link leg's joint angles that put the foot at a point below the hip,
 * ``render_frames``/``save_strip``: MuJoCo's offscreen renderer (MUJOCO_GL=egl or osmesa);
   where no GL context can be made they say why and the caller goes on without a picture,
 * the examples' command line (``parser``: --duration, --short, --actuator, --method,
-  --no-render, --out, --fmi3) and what their main() does with it (``run_methods``: one run
+  --no-render, --out, --fmi3) and what their main() does with it (``run_example``,
+  ``run_methods``: one run
   per solver.method, each reported and plotted, the two side by side with ``--method
   both``; ``report_picture``: the strip of frames or why there is none).
 """
@@ -455,6 +457,16 @@ def make_bank(
 # ---------------------------------------------------------------------------------------
 # kinematics
 # ---------------------------------------------------------------------------------------
+def smooth(t, t0, t1, a, b):
+    """a before t0, b from t1 on, a half-cosine between (t0 == t1: a step to b at t1)."""
+    if t >= t1:
+        return b
+    if t <= t0:
+        return a
+    s = (t - t0) / (t1 - t0)
+    return a + (b - a) * (1 - math.cos(math.pi * s)) / 2
+
+
 def leg_ik(depth: float, fwd: float, L1: float, L2: float, bend: int) -> tuple[float, float]:
     """Hip flexion and knee angles (rad, hinges about +y: a positive angle swings the
     link's lower end towards -x) that put the foot ``depth`` below and ``fwd`` ahead of
@@ -699,6 +711,18 @@ class Camera:
         self.mj.mj_forward(model, data)
         return self.snap(data, None if track_body is None else data.xpos[track_body])
 
+    def capture(self, model, r, times: dict[float, str], track_body: int | None = None) -> None:
+        """Appends to the run ``r`` (its ``t``, ``rec["qpos"]``, ``frames``, ``frame_labels``)
+        the recorded pose nearest after each time of ``times`` (label by time), in time
+        order, captioned with its time and label; closes the renderer."""
+        try:
+            for t, label in sorted(times.items()):
+                k = min(int(np.searchsorted(r.t, t)), len(r.t) - 1)
+                r.frames.append(self.at(model, r.rec["qpos"][k], track_body=track_body))
+                r.frame_labels.append(f"{r.t[k]:.2f} s: {label}")
+        finally:
+            self.close()
+
     def close(self):
         if self.renderer is not None:
             self.renderer.close()
@@ -812,11 +836,25 @@ def report_picture(args, r) -> None:
         print(f"picture: {out}")
 
 
+def run_example(args, run: Callable, report: Callable, plot: Callable, figures: Callable) -> dict | None:
+    """A robot example's main() on its parsed ``args``: ``run(duration, short, actuator,
+    version, render=, method=)`` through ``run_methods``. None (after saying how to build
+    it) when --actuator fmu asks for an archive that is not built."""
+    version = cli.version(args)
+    if args.actuator == "fmu" and cli.archive_missing(version):
+        return None
+
+    def one(method, render):
+        return run(args.duration, args.short, args.actuator, version, render=render, method=method)
+
+    return run_methods(args, one, report, plot, figures)
+
+
 def run_methods(args, run: Callable, report: Callable, plot: Callable, figures: Callable) -> dict:
-    """What a robot example's main() does: ``run(method, render)`` once per method of
-    --method, each ``report``-ed and ``plot``-ted (the fixed_cost run of ``both`` to
-    args.out's name + _fixed_cost), the first run's picture, and with ``both`` the runs'
-    cost (timing_figures) and ``figures(run)`` side by side. Returns {method: run}."""
+    """``run(method, render)`` once per method of --method, each ``report``-ed and
+    ``plot``-ted (the fixed_cost run of ``both`` to args.out's name + _fixed_cost), the first
+    run's picture, and with ``both`` the runs' cost (timing_figures) and ``figures(run)``
+    side by side. Returns {method: run}."""
     chosen = methods(args.method)
     runs = {}
     for i, method in enumerate(chosen):
