@@ -59,10 +59,14 @@ impl Integrator for FixedCostIntegrator {
     ) -> Result<(), String> {
         let n = self.internal_steps(segment.span);
         let h = segment.span / n as f64;
+        // An internal step's end is the next one's start (the cylinder's step leaves the
+        // driver and valve as they are).
+        let mut start = spool_motion(actuator);
         for _ in 0..n {
-            let start = spool_motion(actuator);
             self.driver_and_valve(actuator, h, events)?;
-            cylinder_step::step(actuator, (start, spool_motion(actuator)), h, inputs)?;
+            let end = spool_motion(actuator);
+            cylinder_step::step(actuator, (start, end), h, inputs)?;
+            start = end;
         }
         Ok(())
     }
@@ -146,20 +150,9 @@ impl FixedCostIntegrator {
         let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
         let z = &actuator.z;
         let mut z1 = if actuator.mode == Mode::Switched {
-            let p = Propagator::taylor_only(sys, h, 1);
-            let mut z = *z;
-            for _ in 0..p.substeps {
-                z = p.apply(sys, &z);
-            }
-            z
+            Propagator::taylor_only(sys, h, 1).apply_all(sys, z)
         } else {
-            let key = propagator_key(actuator);
-            let p = self.cache.get(key, sys, h, nominal, 1)?;
-            let mut z = *z;
-            for _ in 0..p.substeps {
-                z = p.apply(sys, &z);
-            }
-            z
+            self.cache.get(propagator_key(actuator), sys, h, nominal, 1)?.apply_all(sys, z)
         };
         driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
         Ok(z1)

@@ -220,6 +220,11 @@ impl Propagator<'_> {
         }
     }
 
+    /// From `z` over all its sub-steps.
+    pub(crate) fn apply_all(&self, sys: &ModeSystem, z: &Vector) -> Vector {
+        (0..self.substeps).fold(*z, |z, _| self.apply(sys, &z))
+    }
+
     /// Whether a sub-step goes through a cached matrix (the fixed-point shortcut needs one).
     pub(crate) fn has_matrix(&self) -> bool {
         self.matrix.is_some()
