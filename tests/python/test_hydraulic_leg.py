@@ -15,6 +15,7 @@ The FMU runs are skipped, saying why, only when the archive's modelDescription h
 motion port (cylinder.port, x_rod, v_rod, F_rod).
 """
 
+import functools
 import math
 
 import numpy as np
@@ -35,6 +36,14 @@ def _require_port(version: str) -> None:
     why = robot.motion_port_missing(version)
     if why:
         pytest.skip(why)
+
+
+@functools.cache
+def _fmu_leg(version: str, method: str = "exact"):
+    """The short stand-up-and-hold run of the leg on the FMU, once per version and method
+    (the tests only read it)."""
+    _require_port(version)
+    return hydraulic_leg.run(short=True, kind="fmu", version=version, render=False, method=method)
 
 
 # -- geometry ----------------------------------------------------------------------------
@@ -115,8 +124,7 @@ def _check_leg(r) -> None:
 
 @pytest.mark.parametrize("version", ehsv.VERSIONS)
 def test_leg_stands_up_and_holds_its_trunk(version):
-    _require_port(version)
-    r = hydraulic_leg.run(short=True, kind="fmu", version=version, render=False)
+    r = _fmu_leg(version)
     assert r.kind == "fmu"
     _check_leg(r)
 
@@ -126,12 +134,10 @@ def test_leg_holds_its_trunk_with_fixed_cost(version):
     """The same stand-up and hold with solver.method = fixed_cost, within the same bounds
     as exact (the co-simulation's error is the host's step, not the FMU's integrator);
     the forces differ from exact's, or the method did not reach the instances."""
-    _require_port(version)
-    r = hydraulic_leg.run(short=True, kind="fmu", version=version, render=False, method="fixed_cost")
+    r = _fmu_leg(version, "fixed_cost")
     assert "solver.method = fixed_cost" in r.actuator_line
     _check_leg(r)
-    exact = hydraulic_leg.run(short=True, kind="fmu", version=version, render=False)
-    assert (r.rec["F"] != exact.rec["F"]).any()
+    assert (r.rec["F"] != _fmu_leg(version).rec["F"]).any()
 
 
 def test_leg_with_the_stand_in():
