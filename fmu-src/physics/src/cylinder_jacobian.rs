@@ -3,7 +3,7 @@
 //! cylinder's tests).
 
 use super::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V, X};
-use super::cylinder_terms::{chamber_terms, net_force};
+use super::cylinder_terms::{chamber_terms, friction, net_force};
 use super::params::RodPort;
 
 /// The model linearised at a state: `f` as [`super::cylinder::derivatives`] computes it
@@ -55,4 +55,35 @@ pub(crate) fn linearise(
     }
     let f_xs = [stiff_a * cf_a * ports.dqa_dxs, -stiff_b * cf_b * ports.dqb_dxs, 0.0, 0.0];
     (f, jac, f_xs)
+}
+
+/// Friction's creep band, in `cylinder.v_friction_smooth`: past this many its `tanh` is 1 to
+/// rounding (tanh(20) = 1 - 8e-18), and a step outside it sees the friction's tangent.
+const CREEP_BAND: f64 = 20.0;
+
+/// For a fixed step of `h` that starts in the friction's creep band or crosses or reaches it
+/// (`v` through zero: starting from rest, a reversal), the friction's slope in `jac` replaced
+/// by its secant from `v` to the explicit prediction `v + h v'`. The band is 1e-4 m/s wide:
+/// its tangent (3e5 N s/m at rest) holds a Rosenbrock step's velocity as a damper would,
+/// though the piston leaves the band in a microsecond (a step from rest lost a sixth of its
+/// velocity); the secant is the damping the step actually crosses. Outside the band the
+/// tangent stays, and with it the method's order.
+pub(crate) fn secant_friction(
+    params: &CylinderParams,
+    y: &Vec4,
+    acceleration: f64,
+    h: f64,
+    jac: &mut Mat4,
+) {
+    if params.port == RodPort::Motion {
+        return;
+    }
+    let (v0, v1) = (y[V], y[V] + h * acceleration);
+    let band = CREEP_BAND * params.v_friction_smooth;
+    if (v0 * v1 > 0.0 && v0.abs().min(v1.abs()) > band) || v1 == v0 {
+        return;
+    }
+    let (f0, tangent) = friction(params, v0);
+    let secant = (friction(params, v1).0 - f0) / (v1 - v0);
+    jac[V][V] += (tangent - secant) / params.mass;
 }

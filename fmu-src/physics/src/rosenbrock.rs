@@ -26,9 +26,9 @@
 
 use super::cylinder::{
     derivatives, next_cavitation_switch, next_contact_switch, CylinderParams, CylinderState, Mat4,
-    Vec4, N_STATES, PA, PB,
+    Vec4, N_STATES, PA, PB, V,
 };
-use super::cylinder_jacobian::linearise;
+use super::cylinder_jacobian::{linearise, secant_friction};
 use super::lu4::Lu4;
 
 /// A Rosenbrock method in the transformed form of Hairer & Wanner and of KPP (Sandu et al.):
@@ -498,7 +498,8 @@ fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
 /// One Rodas3 step of `h` from `y` without step control (the fixed-cost integrator's), the
 /// spool on `spool` (position and rate at a time into the step), lifted to the cavitation
 /// floor; with its embedded error estimate scaled by `rtol` ([`STATE_SCALE`]), infinite if
-/// a stage was not finite.
+/// a stage was not finite. Near zero velocity the friction's slope in its Jacobian is the
+/// secant over the step ([`secant_friction`]).
 pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
     params: &CylinderParams,
     (y, h): (&Vec4, f64),
@@ -508,7 +509,8 @@ pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
     stats: &mut Stats,
 ) -> Result<(Vec4, f64), String> {
     let model = Rhs { params, p_supply, load, spool };
-    let here = model.linearise(0.0, y, stats);
+    let mut here = model.linearise(0.0, y, stats);
+    secant_friction(params, y, here.f0[V], h, &mut here.jac);
     let (mut y_new, err) = rosenbrock_step(&RODAS3, &model, &here, (0.0, y, h), rtol, stats)?;
     clamp_to_floor(params, &mut y_new, stats);
     Ok((y_new, err))
