@@ -268,11 +268,16 @@ pub fn slowest_steps(row: &Row) -> Option<String> {
 
 /// What the doStep times are, for `repeat` timed runs.
 pub fn timed_runs_note(repeat: usize) -> String {
-    let note = "\
+    let (clock_wall, clock_cpu) = crate::timing::clock_cost();
+    let (clock_wall, clock_cpu) = (clock_wall * 1e6, clock_cpu * 1e6);
+    let note = format!(
+        "\
 doStep times in thread CPU: maxwork, the slowest doStep's work (each step at its shortest over
 the timed runs: every workload is deterministic, so a step does the same work in every run, and
 what one run adds is the machine's), judged against the targets; maxraw, the slowest single call
-of all timed runs as measured.";
+of all timed runs as measured. Every timed call less what the clocks cost on an empty call
+({clock_cpu:.2} us thread CPU, {clock_wall:.2} us wall on this machine: the shortest of many)."
+    );
     if repeat < 2 {
         format!(
             "{note}\nWith one timed run (--repeat 1) maxwork is the raw figure: use --repeat 3."
