@@ -7,12 +7,14 @@
 //!   and span; the whole steps' built when the first step is prepared); a guard that
 //!   crossed inside the step is placed by one linear interpolation, the mode chosen again
 //!   there ([`Actuator::settle`]) and the rest of the step taken in the new one: no event
-//!   search;
+//!   search; the parts of a step either side of such a change go by the mode's ladder of
+//!   prebuilt exponentials ([`super::dyadic_ladder`]), so no doStep builds one;
 //! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one step of
 //!   [`super::fixed_cost_cylinder`] (Rodas3; two half steps where one crosses a kink), the
 //!   spool on the cubic through its positions and velocities at the step's ends.
 
 use super::actuator::{current_system, Actuator};
+use super::dyadic_ladder::DyadicLadders;
 use super::fixed_cost_cylinder as cylinder_step;
 use super::integrator::{Integrator, Segment};
 use super::*;
@@ -25,12 +27,19 @@ const MAX_SWITCHES: usize = 3;
 pub(crate) struct FixedCostIntegrator {
     /// The longest internal step (s), `solver.h_internal`.
     h_internal: f64,
+    /// Whole internal steps' propagators, per mode and step.
     cache: PropagatorCache,
+    /// Parts of internal steps (either side of a mode change placed inside one).
+    ladders: DyadicLadders,
 }
 
 impl FixedCostIntegrator {
     pub(crate) fn new(h_internal: f64) -> FixedCostIntegrator {
-        FixedCostIntegrator { h_internal, cache: PropagatorCache::new() }
+        FixedCostIntegrator {
+            h_internal,
+            cache: PropagatorCache::new(),
+            ladders: DyadicLadders::new(h_internal),
+        }
     }
 
     /// How many internal steps cut a segment of `span`.
@@ -83,22 +92,25 @@ impl Integrator for FixedCostIntegrator {
                 let sys = actuator.systems[mode.index()].with_stops(c, actuator.stops);
                 // A mode this driver never enters may have no propagator: nothing to build.
                 let _ = self.cache.get(mode_key(mode, actuator.stops), &sys, h, true, 1);
+                let _ = self.ladders.slot(mode_key(mode, actuator.stops), &sys);
             }
         }
     }
 
     fn adopt_prepared(&mut self, probe: FixedCostIntegrator) {
         self.cache = probe.cache;
+        self.ladders = probe.ladders;
     }
 
     fn retuned(&mut self, _actuator: &Actuator, systems_rebuilt: bool) {
         if systems_rebuilt {
             self.cache.clear();
+            self.ladders.clear();
         }
     }
 
     fn count_work(&self, work: &mut Work) {
-        work.exponentials += self.cache.exponentials;
+        work.exponentials += self.cache.exponentials + self.ladders.exponentials;
     }
 }
 
@@ -142,8 +154,9 @@ impl FixedCostIntegrator {
         Ok(())
     }
 
-    /// Driver, coil and valve over one internal step of `h` in the current mode, put on
-    /// its manifold. The H-bridge's switched spans go by Taylor series, as in the exact
+    /// Driver, coil and valve over `h` in the current mode, put on its manifold: a whole
+    /// internal step (`nominal`) by its cached propagator, a part of one by the mode's
+    /// ladder. The H-bridge's switched spans go by Taylor series, as in the exact
     /// integrator (short and irregular: a series beats an exponential).
     fn propagate(&mut self, actuator: &Actuator, h: f64, nominal: bool) -> Result<Vector, String> {
         let c = &actuator.params;
@@ -151,8 +164,10 @@ impl FixedCostIntegrator {
         let z = &actuator.z;
         let mut z1 = if actuator.mode == Mode::Switched {
             Propagator::taylor_only(sys, h, 1).apply_all(sys, z)
+        } else if nominal {
+            self.cache.get(propagator_key(actuator), sys, h, true, 1)?.apply_all(sys, z)
         } else {
-            self.cache.get(propagator_key(actuator), sys, h, nominal, 1)?.apply_all(sys, z)
+            self.ladders.propagate(propagator_key(actuator), sys, h, z)?
         };
         driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
         Ok(z1)

@@ -22,6 +22,7 @@ mod cylinder_jacobian;
 mod cylinder_terms;
 mod driven_cylinder;
 mod driver;
+mod dyadic_ladder;
 mod exact_integrator;
 mod fixed_cost;
 mod fixed_cost_cylinder;

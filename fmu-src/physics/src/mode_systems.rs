@@ -312,7 +312,7 @@ impl PropagatorCache {
 
 /// exp(A t) z by its Taylor series, in pieces with |lambda| h <= 1, each summed until
 /// (|lambda| h)^k / k! is below rounding.
-fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
+pub(crate) fn taylor_propagate(sys: &ModeSystem, z0: &Vector, span: f64) -> Vector {
     let pieces = sys.substeps(span, 1.0);
     let h = span / pieces as f64;
     let terms = taylor_terms(sys.radius * h);

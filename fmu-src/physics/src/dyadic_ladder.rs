@@ -1,0 +1,94 @@
+//! Exact propagation of driver, coil and valve over any part of an internal step with no
+//! matrix exponential inside the step, for the fixed-cost integrator ([`super::fixed_cost`]).
+//!
+//! A mode change placed inside an internal step leaves two parts of arbitrary length. Keyed
+//! by length, their propagators would be built as they come: a 9x9 exponential (about a
+//! microsecond) in whichever doStep first meets that length, the slowest doSteps. Instead
+//! each (mode, stops) pair gets a ladder of [`LEVELS`] exponentials `exp(A T 2^-k)`, `T` the
+//! power of two at or above `solver.h_internal`, built when the first step is prepared; a
+//! part of length `tau` is the product of the rungs of the binary digits of `tau / T`
+//! (matrix-vector products), finished by a Taylor series over what is left (below
+//! `T 2^-LEVELS`, 30 ns at the default). The result is the same whether the ladder was
+//! prepared or built when first needed, so a restored state continues bit for bit.
+
+use super::augmented_exp::exp_augmented;
+use super::augmented_state::{propagate, Mat, Vector};
+use super::mode_systems::{taylor_propagate, ModeSystem};
+
+/// Rungs per ladder: the smallest is `T / 1024`.
+const LEVELS: usize = 10;
+/// Ladders held; the least recently built is replaced (a driver uses a handful of modes).
+const SLOTS: usize = 16;
+const EMPTY: usize = usize::MAX;
+
+/// The ladders of the (mode, stops) pairs met so far: a pure cache.
+#[derive(Clone)]
+pub(crate) struct DyadicLadders {
+    /// The top rung's span `T` (s).
+    top: f64,
+    keys: [usize; SLOTS],
+    /// On the heap, allocated with the integrator (104 kB): `rungs[slot][k] = exp(A T 2^-k)`.
+    rungs: Box<[[Mat; LEVELS]]>,
+    next: usize,
+    /// Matrix exponentials computed so far (a work counter).
+    pub(crate) exponentials: u64,
+}
+
+impl DyadicLadders {
+    /// Empty ladders for parts of internal steps of at most `h_internal`.
+    pub(crate) fn new(h_internal: f64) -> DyadicLadders {
+        DyadicLadders {
+            top: 2f64.powi(h_internal.log2().ceil() as i32),
+            keys: [EMPTY; SLOTS],
+            rungs: vec![[Mat::zeros(); LEVELS]; SLOTS].into_boxed_slice(),
+            next: 0,
+            exponentials: 0,
+        }
+    }
+
+    /// Forgets every ladder (the systems they were built for changed).
+    pub(crate) fn clear(&mut self) {
+        self.keys = [EMPTY; SLOTS];
+        self.next = 0;
+    }
+
+    /// The slot of `key`'s ladder (`key` names the (mode, stops) pair of `sys`), built if
+    /// it is not held.
+    pub(crate) fn slot(&mut self, key: usize, sys: &ModeSystem) -> Result<usize, String> {
+        if let Some(slot) = self.keys.iter().position(|&k| k == key) {
+            return Ok(slot);
+        }
+        let slot = self.next;
+        let mut span = self.top;
+        for rung in self.rungs[slot].iter_mut() {
+            *rung = exp_augmented(&(sys.a * span)).ok_or_else(|| {
+                format!("a sub-step of {span} s with these parameters has no exact propagator; step refused")
+            })?;
+            span *= 0.5;
+        }
+        self.exponentials += LEVELS as u64;
+        self.keys[slot] = key;
+        self.next = (slot + 1) % SLOTS;
+        Ok(slot)
+    }
+
+    /// `exp(A tau) z` for the system `key` names, `0 <= tau <= T`.
+    pub(crate) fn propagate(
+        &mut self,
+        key: usize,
+        sys: &ModeSystem,
+        tau: f64,
+        z: &Vector,
+    ) -> Result<Vector, String> {
+        let slot = self.slot(key, sys)?;
+        let (mut z, mut left, mut span) = (*z, tau, self.top);
+        for rung in &self.rungs[slot] {
+            if left >= span {
+                z = propagate(rung, &z);
+                left -= span;
+            }
+            span *= 0.5;
+        }
+        Ok(if left > 0.0 { taylor_propagate(sys, &z, left) } else { z })
+    }
+}
