@@ -84,9 +84,10 @@ fn compare_with(
 
 /// Driver, coil and valve (the first three outputs) go by exact propagators between
 /// boundaries, their mode changes placed by interpolation: within 1e-4 of their range on
-/// every linear driver. The piston within 1e-4, the pressures within 2.5e-3, the 2 Hz waves'
-/// impacts on the end stops included (each cut at its contact; a step across one was 1.5e-2
-/// off in the pressures).
+/// every linear driver. The piston within 1e-4, the pressures within 2.5e-3 on the 20 Hz
+/// waves and 5e-4 on the 2 Hz waves, which drive the piston into its end stops (each step
+/// cut where the piston reaches a stop and where it leaves it; a step across a contact,
+/// halved, was 1.5e-2 off in the pressures).
 #[test]
 fn fixed_cost_follows_exact_on_sines_and_squares() {
     for kind in ["ideal_current", "voltage", "opamp_pi", "industrial"] {
@@ -100,14 +101,15 @@ fn fixed_cost_follows_exact_on_sines_and_squares() {
                 let case = format!("{kind} {shape} {hz} Hz: {}", show(&e));
                 assert!(e[..3].iter().all(|&x| x < 1e-4), "{case}");
                 assert!(e[5] < 1e-4, "{case}");
-                assert!(e[3] < 2.5e-3 && e[4] < 2.5e-3, "{case}");
+                let pressures = if hz > 10.0 { 2.5e-3 } else { 5e-4 };
+                assert!(e[3] < pressures && e[4] < pressures, "{case}");
             }
         }
     }
 }
 
 /// The loops: the piston within 1e-3 of its range (the position loop within 1e-6), every
-/// output within 2e-3; the H-bridge's PWM spans are exact for driver and coil, the piston
+/// output within 1e-3; the H-bridge's PWM spans are exact for driver and coil, the piston
 /// within 1e-5.
 #[test]
 fn fixed_cost_follows_exact_in_the_loops() {
@@ -122,7 +124,7 @@ fn fixed_cost_follows_exact_in_the_loops() {
     assert!(position[5] < 1e-6, "{}", show(&position));
     for e in [flow, position] {
         assert!(e[5] < 1e-3, "{}", show(&e));
-        assert!(e.iter().all(|&x| x < 2e-3), "{}", show(&e));
+        assert!(e.iter().all(|&x| x < 1e-3), "{}", show(&e));
     }
     let s = sine(5.0, 5e-3);
     let e = compare(&[driver("hbridge_pid")], 0.2, 1e-4, &|t| (vr::I_REF, s(t)));

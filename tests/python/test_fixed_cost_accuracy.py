@@ -7,8 +7,9 @@ run, on the runs where a fixed step meets something inside a step.
   3e5 N s/m at rest). A step from rest whose Jacobian took that slope held the piston as a
   damper would and was 4.4e-3 off; cut where the band is left, 1e-3 at most.
 * Current squares and a sine at 2 Hz drive the piston into its end stops, where the contact
-  force jumps in. A step across a contact, halved, was 1.1e-2 (square) and 4.8e-2 (sine)
-  off; cut at the contact, the second part starting on the stop, 2e-3 and 1e-2 at most.
+  force jumps in, and out of them, where it lets go (a kink). A step across either,
+  halved, was 1.1e-2 (square) and 4.8e-2 (sine) off; cut where the piston reaches the stop
+  (the second part starting on it) and where it leaves it, 1e-3 and 3e-3 at most.
 
 The share is the bench's (``ehsv-tests`` bench, column dev/range): max |fixed - exact|
 over the exact run's range, that range at least 1e-3 of the output's largest magnitude.
@@ -51,8 +52,8 @@ RUNS = {
         0.05,
         1e-3,
     ),
-    "square 2 Hz into the end stops": ({}, {"i_ref": square(2.0, 5 * MA)}, 0.5, 2e-3),
-    "sine 2 Hz into the end stops": ({}, {"i_ref": sine(2.0, 5 * MA)}, 0.5, 1e-2),
+    "square 2 Hz into the end stops": ({}, {"i_ref": square(2.0, 5 * MA)}, 0.5, 1e-3),
+    "sine 2 Hz into the end stops": ({}, {"i_ref": sine(2.0, 5 * MA)}, 0.5, 3e-3),
 }
 
 
