@@ -17,30 +17,14 @@ over the exact run's range, that range at least 1e-3 of the output's largest mag
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 import ehsv
+from test_fixed_cost_stability import MA, H, constant, sine, square
 
-H = 1e-4  # s, communication step
-MA = 1e-3
 #: an output that barely moves has no range to speak of: its floor, as a share of its size
 RANGE_FLOOR = 1e-3
-
-
-def square(f: float, amplitude: float):
-    half = round(0.5 / f / H)
-    return lambda k: amplitude if (k // half) % 2 == 0 else -amplitude
-
-
-def sine(f: float, amplitude: float):
-    return lambda k: amplitude * math.sin(2 * math.pi * f * k * H)
-
-
-def held(value: float):
-    return lambda k: value
 
 
 #: name -> (parameters, {input: value at step k}, duration s, bound on the share); the
@@ -48,7 +32,7 @@ def held(value: float):
 RUNS = {
     "leg standing up under its load": (
         {"control_mode": "position"},
-        {"x_ref": held(5e-3), "F_ext": held(-750.0)},
+        {"x_ref": constant(5e-3), "F_ext": constant(-750.0)},
         0.05,
         1e-3,
     ),
