@@ -154,7 +154,8 @@ mod tests {
 
     /// A retune continues exactly as a start under the new parameters with the state carried
     /// over would, for a change of each group, with and without travel stops, from a state in
-    /// the linear mode (a slow sine) and from one in a slew (a square wave).
+    /// the linear mode (a slow sine) and from one in a slew (a square wave), on both methods
+    /// (their caches of propagators built for the old systems forgotten).
     #[test]
     fn a_retune_continues_as_a_restart_would() {
         let changes: [Change; 9] = [
@@ -193,28 +194,44 @@ mod tests {
             ("4.6 mA", &constant, ControlMode::Current, 37),
             ("position", &position, ControlMode::Position, 37),
         ];
-        // Travel stops of flapper and spool (m): none, loose, a tight flapper.
-        for (flapper, spool) in [(0.0, 0.0), (2e-5, 2e-4), (2e-6, 2e-4)] {
-            for (signal, inputs, mode, before) in signals {
-                let mut p = Params { control_mode: mode, ..Params::PAPER };
-                (p.valve.x_flapper_max, p.valve.x_spool_max) = (flapper, spool);
-                for (name, change) in changes {
-                    let mut physics = Physics::start(&p, &inputs(0.0), 0.0).unwrap();
-                    run(&mut physics, inputs, 0.0, before);
-                    let mut q = p;
-                    change(&mut q);
-                    let t = before as f64 * 1e-4;
-                    let mut reference = restarted(&physics, &q, &inputs(t), t);
-                    physics.retune(&q, &inputs(t), t).unwrap();
-                    let case = format!("{name} retuned, {signal}, stops {flapper:e} {spool:e}");
-                    assert_eq!(bytes(&physics), bytes(&reference), "{case}: at the retune");
-                    let after = run(&mut physics, inputs, t, 400);
-                    let expected = run(&mut reference, inputs, t, 400);
-                    for (k, (got, want)) in after.iter().zip(&expected).enumerate() {
-                        assert!(got == want, "{case}: step {k} after the retune differs");
+        // Both methods; travel stops of flapper and spool (m): none, loose, a tight flapper.
+        for method in SolverMethod::ALL {
+            for (flapper, spool) in [(0.0, 0.0), (2e-5, 2e-4), (2e-6, 2e-4)] {
+                for (signal, inputs, mode, before) in signals {
+                    let mut p =
+                        Params { control_mode: mode, solver_method: method, ..Params::PAPER };
+                    (p.valve.x_flapper_max, p.valve.x_spool_max) = (flapper, spool);
+                    for (name, change) in changes {
+                        let case = format!(
+                            "{method:?}: {name} retuned, {signal}, stops {flapper:e} {spool:e}"
+                        );
+                        retune_matches_restart(&p, change, (inputs, before), &case);
                     }
                 }
             }
+        }
+    }
+
+    /// Runs `p` through `inputs` for `before` steps, retunes to `change`d parameters, and
+    /// checks the state and 400 steps after it against [`restarted`]'s, bit for bit.
+    fn retune_matches_restart(
+        p: &Params,
+        change: fn(&mut Params),
+        (inputs, before): (&dyn Fn(f64) -> Inputs, usize),
+        case: &str,
+    ) {
+        let mut physics = Physics::start(p, &inputs(0.0), 0.0).unwrap();
+        run(&mut physics, inputs, 0.0, before);
+        let mut q = *p;
+        change(&mut q);
+        let t = before as f64 * 1e-4;
+        let mut reference = restarted(&physics, &q, &inputs(t), t);
+        physics.retune(&q, &inputs(t), t).unwrap();
+        assert_eq!(bytes(&physics), bytes(&reference), "{case}: at the retune");
+        let after = run(&mut physics, inputs, t, 400);
+        let expected = run(&mut reference, inputs, t, 400);
+        for (k, (got, want)) in after.iter().zip(&expected).enumerate() {
+            assert!(got == want, "{case}: step {k} after the retune differs");
         }
     }
 
