@@ -8,14 +8,14 @@
 //! power of two at or above `solver.h_internal`, built when the first step is prepared; a
 //! part of length `tau` is the product of the rungs of the binary digits of `tau / T`
 //! (matrix-vector products), finished by a Taylor series over what is left (below
-//! `T 2^-LEVELS`, 30 ns at the default). The result is the same whether the ladder was
+//! `T 2^(1 - LEVELS)`, 60 ns at the default). The result is the same whether the ladder was
 //! prepared or built when first needed, so a restored state continues bit for bit.
 
 use super::augmented_exp::exp_augmented;
 use super::augmented_state::{propagate, Mat, Vector};
 use super::mode_systems::{taylor_propagate, ModeSystem};
 
-/// Rungs per ladder: the smallest is `T / 1024`.
+/// Rungs per ladder: the smallest is `T / 512`.
 const LEVELS: usize = 10;
 /// Ladders held; the least recently built is replaced (a driver uses a handful of modes).
 const SLOTS: usize = 16;
@@ -81,15 +81,26 @@ impl DyadicLadders {
         z: &Vector,
     ) -> Result<Vector, String> {
         let slot = self.slot(key, sys)?;
-        let (mut z, mut left, mut span) = (*z, tau, self.top);
-        for rung in &self.rungs[slot] {
-            if left >= span {
-                z = propagate(rung, &z);
+        let (digits, rest) = self.digits(tau);
+        let mut z = *z;
+        for (rung, _) in self.rungs[slot].iter().zip(digits).filter(|(_, digit)| *digit) {
+            z = propagate(rung, &z);
+        }
+        Ok(if rest > 0.0 { taylor_propagate(sys, &z, rest) } else { z })
+    }
+
+    /// The binary digits of `tau / T` (digit k: the rung of `T 2^-k` is taken) and what is
+    /// left below the smallest rung.
+    fn digits(&self, tau: f64) -> ([bool; LEVELS], f64) {
+        let (mut digits, mut left, mut span) = ([false; LEVELS], tau, self.top);
+        for digit in digits.iter_mut() {
+            *digit = left >= span;
+            if *digit {
                 left -= span;
             }
             span *= 0.5;
         }
-        Ok(if left > 0.0 { taylor_propagate(sys, &z, left) } else { z })
+        (digits, left)
     }
 }
 
@@ -123,5 +134,46 @@ mod tests {
         }
         println!("worst relative difference {worst:e}");
         assert!(worst < 1e-12, "{worst:e}");
+    }
+
+    /// A part's length in rungs: `T = 2^-15 s` for 25 us internal steps; 5/8 of it is the
+    /// rungs 1/2 and 1/8 with nothing left; `T (1 - 2^-12)` every rung but the top and
+    /// `T (2^-9 - 2^-12)` left for the series.
+    #[test]
+    fn a_part_is_cut_into_the_binary_digits_of_its_length() {
+        let ladders = DyadicLadders::new(25e-6);
+        let top = 2f64.powi(-15);
+        assert_eq!(ladders.top, top);
+        let (digits, rest) = ladders.digits(0.625 * top);
+        assert_eq!(digits, [false, true, false, true, false, false, false, false, false, false]);
+        assert_eq!(rest, 0.0);
+        let (digits, rest) = ladders.digits(top * (1.0 - 2f64.powi(-12)));
+        let mut below_top = [true; LEVELS];
+        below_top[0] = false;
+        assert_eq!(digits, below_top);
+        assert_eq!(rest, top * (2f64.powi(-9) - 2f64.powi(-12)));
+    }
+
+    /// A ladder is built once per (mode, stops) pair and kept: ten exponentials each, none
+    /// for a pair met again, until more pairs than slots push the oldest out.
+    #[test]
+    fn each_ladder_is_built_once_and_the_oldest_replaced() {
+        let c = Coefficients::new(&Params::PAPER).unwrap();
+        let sys = mode_system(&c, MODES[0]);
+        let z = Vector::from_element(1.0);
+        let mut ladders = DyadicLadders::new(25e-6);
+        for round in 0..2 {
+            for key in 0..SLOTS {
+                ladders.propagate(key, &sys, 1e-5, &z).unwrap();
+            }
+            assert_eq!(ladders.exponentials, (SLOTS * LEVELS) as u64, "round {round}");
+        }
+        ladders.propagate(SLOTS, &sys, 1e-5, &z).unwrap();
+        assert_eq!(ladders.keys[0], SLOTS, "the oldest slot takes the new pair");
+        ladders.propagate(1, &sys, 1e-5, &z).unwrap();
+        assert_eq!(ladders.exponentials, ((SLOTS + 1) * LEVELS) as u64);
+        ladders.clear();
+        ladders.propagate(1, &sys, 1e-5, &z).unwrap();
+        assert_eq!(ladders.exponentials, ((SLOTS + 2) * LEVELS) as u64, "cleared: built again");
     }
 }
