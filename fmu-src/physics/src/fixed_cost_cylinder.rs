@@ -203,7 +203,7 @@ fn cubic_path(([x0, v0], [x1, v1]): SpoolEnds, h: f64) -> impl Fn(f64) -> (f64, 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cylinder::equilibrium;
+    use crate::cylinder::{equilibrium, PA, PB};
 
     fn paper_cylinder() -> (CylinderParams, f64) {
         let c = Coefficients::new(&Params::PAPER).unwrap();
@@ -308,68 +308,97 @@ mod tests {
         assert!(o3.iter().all(|&o| o > 2.6), "Rodas3: {o3:?}");
     }
 
-    /// `y` after `span` in `n` plain Rodas3 steps, the spool held at `xs`: the reference
-    /// for one internal step (steps of 25 ns resolve the friction's band and the contact).
-    fn fine(params: &CylinderParams, y: &Vec4, xs: f64, span: f64, loads: (f64, f64)) -> Vec4 {
+    /// The internal step of the tests below.
+    const STEP: f64 = 25e-6;
+
+    /// `y` after [`STEP`] in 1000 plain Rodas3 steps, the spool on the cubic through
+    /// `spool`: the reference for one internal step (steps of 25 ns resolve the friction's
+    /// band and the contact).
+    fn fine(params: &CylinderParams, y: &Vec4, spool: SpoolEnds, loads: (f64, f64)) -> Vec4 {
         let (n, mut y) = (1000, *y);
-        let path = cubic_path(([xs, 0.0], [xs, 0.0]), span / n as f64);
-        for _ in 0..n {
-            let step = (&y, span / n as f64);
-            y = rodas3_fixed_step(params, step, &path, loads, 1.0, &mut Stats::default())
+        let (whole, h) = (cubic_path(spool, STEP), STEP / n as f64);
+        for k in 0..n {
+            let end = |tau: f64| -> [f64; 2] { whole(tau).into() };
+            let path = cubic_path((end(k as f64 * h), end((k + 1) as f64 * h)), h);
+            y = rodas3_fixed_step(params, (&y, h), &path, loads, 1.0, &mut Stats::default())
                 .unwrap()
                 .0;
         }
         y
     }
 
-    /// One internal step of 25 us from `y` with the spool held at `xs`, and its error in
-    /// velocity against [`fine`] as a share of the velocity reached.
+    /// One internal step from `y`, the spool moving from 1e-4 m (or `-1e-4 m` on the bottom
+    /// `side`) at `spool_rate` for the step: its error in velocity against [`fine`] as a
+    /// share of the velocity reached, in the pressures (Pa), and its work.
     fn one_step_velocity_error(
         params: &CylinderParams,
         y: &Vec4,
-        xs: f64,
+        (side, spool_rate): (f64, f64),
         loads: (f64, f64),
-    ) -> f64 {
-        let held = ([xs, 0.0], [xs, 0.0]);
-        let y1 = advance(params, y, held, 25e-6, loads, &mut Stats::default()).unwrap();
-        let reference = fine(params, y, xs, 25e-6, loads);
-        println!("v {:e}, reference {:e}", y1[V], reference[V]);
-        ((y1[V] - reference[V]) / reference[V]).abs()
+    ) -> (f64, f64, Stats) {
+        let x0 = side * 1e-4;
+        let spool = ([x0, spool_rate], [x0 + STEP * spool_rate, spool_rate]);
+        let mut stats = Stats::default();
+        let y1 = advance(params, y, spool, STEP, loads, &mut stats).unwrap();
+        let reference = fine(params, y, spool, loads);
+        let pressures = (y1[PA] - reference[PA]).abs().max((y1[PB] - reference[PB]).abs());
+        println!("v {:e}, reference {:e}; pressures {pressures:e} Pa off", y1[V], reference[V]);
+        (((y1[V] - reference[V]) / reference[V]).abs(), pressures, stats)
+    }
+
+    /// A step cut in two: the whole step tried (rejected), then its two parts (accepted).
+    fn cut_in_two(stats: &Stats) -> bool {
+        (stats.rejected, stats.accepted) == (1, 2)
     }
 
     /// A piston at rest under a load applied at once (a leg standing up) leaves the
     /// friction's creep band within a microsecond. One step over it from rest, its Jacobian
     /// taking the band's tangent, held the piston as a damper would: 17 % of the velocity
-    /// lost, or 2 % with the secant alone. Cut where the band was left, 1 % at most.
+    /// lost, or 2 % with the secant alone. Cut where the band was left, 1 % at most, the
+    /// spool closed.
     #[test]
     fn a_step_from_rest_is_cut_where_the_friction_has_risen() {
         let (params, p_supply) = paper_cylinder();
         let rest = equilibrium(&params, p_supply, 0.0).to_array();
-        let error = one_step_velocity_error(&params, &rest, 0.0, (p_supply, -750.0));
-        assert!(error < 1e-2, "{error:e} of the velocity");
+        let spool = ([0.0; 2], [0.0; 2]);
+        let mut stats = Stats::default();
+        let y1 = advance(&params, &rest, spool, STEP, (p_supply, -750.0), &mut stats).unwrap();
+        let reference = fine(&params, &rest, spool, (p_supply, -750.0));
+        let error = ((y1[V] - reference[V]) / reference[V]).abs();
+        assert!(error < 1e-2 && cut_in_two(&stats), "{error:e} of the velocity, {stats:?}");
     }
 
-    /// A piston running into its top stop 10 us into a step: the contact force jumps in by
-    /// `c v` there. The step is cut at the contact and the second part starts on the stop's
-    /// surface; the velocity after the step within 3e-4 of the reference (halved instead, 3.4e-3).
+    /// A piston running into either stop 10 us into a step, the spool opening further: the
+    /// contact force jumps in by `c v` there. The step is cut a thousandth short of the
+    /// contact and the second part starts on the stop's surface; the velocity after the step
+    /// within 3e-4 of the reference (halved instead, 3.4e-3), the pressures within 1 kPa
+    /// (the second part's spool path a step too long, 26 kPa).
     #[test]
     fn a_step_into_an_end_stop_is_cut_at_the_contact() {
         let (params, p_supply) = paper_cylinder();
-        let mut y = equilibrium(&params, p_supply, 0.0).to_array();
-        (y[X], y[V]) = (0.5 * params.stroke - 3e-6, 0.3);
-        let error = one_step_velocity_error(&params, &y, 1e-4, (p_supply, 0.0));
-        assert!(error < 3e-4, "{error:e} of the velocity");
+        for side in [1.0, -1.0] {
+            let mut y = equilibrium(&params, p_supply, 0.0).to_array();
+            (y[X], y[V]) = (side * (0.5 * params.stroke - 3e-6), side * 0.3);
+            let (error, pressures, stats) =
+                one_step_velocity_error(&params, &y, (side, side * 2.0), (p_supply, 0.0));
+            let case = format!("side {side}: {error:e}, {pressures:e} Pa, {stats:?}");
+            assert!(error < 3e-4 && pressures < 1e3 && cut_in_two(&stats), "{case}");
+        }
     }
 
-    /// A piston 35 um into its top stop, pulled out at 0.3 m/s: the contact force
+    /// A piston 35 um into either stop, pulled out at 0.3 m/s: the contact force
     /// `k d + c d'` reaches zero within the step, and the piston leaves (a kink). Cut there,
     /// the velocity after the step within 3e-5 of the reference (across it, 7.2e-4).
     #[test]
     fn a_step_out_of_an_end_stop_is_cut_where_the_contact_lets_go() {
         let (params, p_supply) = paper_cylinder();
-        let mut y = equilibrium(&params, p_supply, 0.0).to_array();
-        (y[X], y[V]) = (0.5 * params.stroke + 35e-6, -0.3);
-        let error = one_step_velocity_error(&params, &y, -1e-4, (p_supply, 0.0));
-        assert!(error < 3e-5, "{error:e} of the velocity");
+        for side in [1.0, -1.0] {
+            let mut y = equilibrium(&params, p_supply, 0.0).to_array();
+            (y[X], y[V]) = (side * (0.5 * params.stroke + 35e-6), -side * 0.3);
+            let (error, pressures, stats) =
+                one_step_velocity_error(&params, &y, (-side, -side * 2.0), (p_supply, 0.0));
+            let case = format!("side {side}: {error:e}, {pressures:e} Pa, {stats:?}");
+            assert!(error < 3e-5 && pressures < 1e3 && cut_in_two(&stats), "{case}");
+        }
     }
 }
