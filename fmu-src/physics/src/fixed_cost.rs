@@ -89,10 +89,11 @@ impl Integrator for FixedCostIntegrator {
         for span in [Some(step), looping.then(|| 1.0 / c.loops.f_sample)].into_iter().flatten() {
             let h = span / self.internal_steps(span) as f64;
             for mode in MODES.into_iter().filter(|&m| m != Mode::Switched) {
+                let key = mode_key(mode, actuator.stops);
                 let sys = actuator.systems[mode.index()].with_stops(c, actuator.stops);
                 // A mode this driver never enters may have no propagator: nothing to build.
-                let _ = self.cache.get(mode_key(mode, actuator.stops), &sys, h, true, 1);
-                let _ = self.ladders.slot(mode_key(mode, actuator.stops), &sys);
+                let _ = self.cache.get(key, &sys, h, true, 1);
+                let _ = self.ladders.slot(key, &sys);
             }
         }
     }

@@ -334,17 +334,21 @@ mod tests {
         y
     }
 
-    /// One internal step from `y`, the spool moving from 1e-4 m (or `-1e-4 m` on the bottom
-    /// `side`) at `spool_rate`, the rate doubling over the step: its error in velocity
-    /// against [`fine`] as a share of the velocity reached, in the pressures (Pa), and its
-    /// work.
-    fn one_step_velocity_error(
+    /// The spool moving from 1e-4 m (`-1e-4 m` on the bottom `side`) at `rate`, the rate
+    /// doubling over the step: a [`parabola`].
+    fn opening_spool(side: f64, rate: f64) -> (f64, f64, f64) {
+        (side * 1e-4, rate, rate / STEP)
+    }
+
+    /// One internal step from `y`, the spool on the [`parabola`] `motion`: its error in
+    /// velocity against [`fine`] as a share of the velocity reached, in the pressures (Pa),
+    /// and its work.
+    fn one_step_errors(
         params: &CylinderParams,
         y: &Vec4,
-        (side, spool_rate): (f64, f64),
+        motion: (f64, f64, f64),
         loads: (f64, f64),
     ) -> (f64, f64, Stats) {
-        let motion = (side * 1e-4, spool_rate, spool_rate / STEP);
         let end = |t: f64| -> [f64; 2] { parabola(motion, t).into() };
         let mut stats = Stats::default();
         let y1 = advance(params, y, (end(0.0), end(STEP)), STEP, loads, &mut stats).unwrap();
@@ -368,11 +372,8 @@ mod tests {
     fn a_step_from_rest_is_cut_where_the_friction_has_risen() {
         let (params, p_supply) = paper_cylinder();
         let rest = equilibrium(&params, p_supply, 0.0).to_array();
-        let spool = ([0.0; 2], [0.0; 2]);
-        let mut stats = Stats::default();
-        let y1 = advance(&params, &rest, spool, STEP, (p_supply, -750.0), &mut stats).unwrap();
-        let reference = fine(&params, &rest, (0.0, 0.0, 0.0), (p_supply, -750.0));
-        let error = ((y1[V] - reference[V]) / reference[V]).abs();
+        let closed = (0.0, 0.0, 0.0);
+        let (error, _, stats) = one_step_errors(&params, &rest, closed, (p_supply, -750.0));
         assert!(error < 1e-2 && cut_in_two(&stats), "{error:e} of the velocity, {stats:?}");
     }
 
@@ -387,8 +388,8 @@ mod tests {
         for side in [1.0, -1.0] {
             let mut y = equilibrium(&params, p_supply, 0.0).to_array();
             (y[X], y[V]) = (side * (0.5 * params.stroke - 3e-6), side * 0.3);
-            let (error, pressures, stats) =
-                one_step_velocity_error(&params, &y, (side, side * 2.0), (p_supply, 0.0));
+            let spool = opening_spool(side, side * 2.0);
+            let (error, pressures, stats) = one_step_errors(&params, &y, spool, (p_supply, 0.0));
             let case = format!("side {side}: {error:e}, {pressures:e} Pa, {stats:?}");
             assert!(error < 3e-4 && pressures < 1e3 && cut_in_two(&stats), "{case}");
         }
@@ -403,8 +404,8 @@ mod tests {
         for side in [1.0, -1.0] {
             let mut y = equilibrium(&params, p_supply, 0.0).to_array();
             (y[X], y[V]) = (side * (0.5 * params.stroke + 35e-6), -side * 0.3);
-            let (error, pressures, stats) =
-                one_step_velocity_error(&params, &y, (-side, -side * 2.0), (p_supply, 0.0));
+            let spool = opening_spool(-side, -side * 2.0);
+            let (error, pressures, stats) = one_step_errors(&params, &y, spool, (p_supply, 0.0));
             let case = format!("side {side}: {error:e}, {pressures:e} Pa, {stats:?}");
             assert!(error < 3e-5 && pressures < 1e3 && cut_in_two(&stats), "{case}");
         }
