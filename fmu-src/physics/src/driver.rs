@@ -62,7 +62,7 @@ pub(crate) fn rail(c: &Coefficients, v_supply: f64) -> f64 {
 }
 
 /// Row vector of u_lin = Kp (i_ref - i) + ui.
-fn u_lin_row(c: &Coefficients) -> Vector {
+pub(crate) fn u_lin_row(c: &Coefficients) -> Vector {
     let mut r = Vector::zeros();
     r[I_CMD] = c.kp;
     r[I] = -c.kp;

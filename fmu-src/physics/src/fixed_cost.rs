@@ -14,9 +14,11 @@
 //!   spool on the cubic through its positions and velocities at the step's ends.
 
 use super::actuator::{current_system, Actuator};
+use super::augmented_state::{RAIL, U};
 use super::dyadic_ladder::DyadicLadders;
 use super::fixed_cost_cylinder as cylinder_step;
 use super::integrator::{Integrator, Segment};
+use super::slew_end;
 use super::*;
 
 /// Mode changes placed inside one internal step at most; more are decided at its end.
@@ -31,14 +33,17 @@ pub(crate) struct FixedCostIntegrator {
     cache: PropagatorCache,
     /// Parts of internal steps (either side of a mode change placed inside one).
     ladders: DyadicLadders,
+    /// The mode pairs whose slew ends [`slew_end`] takes.
+    slew_exits: slew_end::SlewExits,
 }
 
 impl FixedCostIntegrator {
-    pub(crate) fn new(h_internal: f64) -> FixedCostIntegrator {
+    pub(crate) fn new(h_internal: f64, actuator: &Actuator) -> FixedCostIntegrator {
         FixedCostIntegrator {
             h_internal,
             cache: PropagatorCache::new(),
             ladders: DyadicLadders::new(h_internal),
+            slew_exits: slew_end::slew_exits(&actuator.systems),
         }
     }
 
@@ -103,10 +108,11 @@ impl Integrator for FixedCostIntegrator {
         self.ladders = probe.ladders;
     }
 
-    fn retuned(&mut self, _actuator: &Actuator, systems_rebuilt: bool) {
+    fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool) {
         if systems_rebuilt {
             self.cache.clear();
             self.ladders.clear();
+            self.slew_exits = slew_end::slew_exits(&actuator.systems);
         }
     }
 
@@ -118,18 +124,26 @@ impl Integrator for FixedCostIntegrator {
 impl FixedCostIntegrator {
     /// Driver, coil and valve over one internal step of `h`. A guard of the mode that
     /// crossed inside it is placed by linear interpolation of its values at the ends (no
-    /// iteration: exact for the slews' straight lines), the state propagated there, the
-    /// mode changed and the rest of the step taken in the new one; after
-    /// [`MAX_SWITCHES`] of those the mode is decided at the step's end alone.
+    /// iteration), the state propagated there, the mode changed and the rest of the step
+    /// taken in the new one; after [`MAX_SWITCHES`] of those the mode is decided at the
+    /// step's end alone. A slew from the step's start into the linear mode (a new command:
+    /// a step of it, or a loop's sample) is placed exactly first ([`Self::slew_from_start`]).
     fn driver_and_valve(
         &mut self,
         actuator: &mut Actuator,
         h: f64,
         events: &mut StepEvents,
     ) -> Result<(), String> {
-        let mut left = h;
-        for switches in 0..=MAX_SWITCHES {
-            let mut z1 = self.propagate(actuator, left, left == h)?;
+        let (mut left, mut ahead) = (h, None);
+        let mut first = 0;
+        if let Some((tau, end)) = self.slew_from_start(actuator, h, events)? {
+            (left, ahead, first) = (h - tau, end, 1);
+        }
+        for switches in first..=MAX_SWITCHES {
+            let mut z1 = match ahead.take() {
+                Some(end) => end,
+                None => self.propagate(actuator, left, left == h)?,
+            };
             let crossing = (switches < MAX_SWITCHES)
                 .then(|| first_crossing(actuator, &z1))
                 .flatten()
@@ -153,6 +167,73 @@ impl FixedCostIntegrator {
             }
         }
         Ok(())
+    }
+
+    /// A slew from the internal step's start that ends inside it in the linear mode, without
+    /// the valve at a stop: its end is the root of a quadratic ([`slew_end::end_time`]:
+    /// exact, no search), the state is taken there and settled, and the linear mode's end of
+    /// the step is its start pulled back to the step's ([`slew_end::pulled_back`]) through
+    /// the whole step's propagator, where that is one matrix (else `None`: the rest goes by
+    /// the ladder). Its end and that state; `None` for any other step.
+    fn slew_from_start(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        events: &mut StepEvents,
+    ) -> Result<Option<(f64, Option<Vector>)>, String> {
+        let Some(tau) = self.slew_end(actuator, h) else {
+            return Ok(None);
+        };
+        let (start, from) = (actuator.z, actuator.mode);
+        let mut z1 = self.propagate(actuator, tau, false)?;
+        driver::clip_overshoot(&actuator.params, &mut z1, from, true);
+        actuator.settle(&mut z1);
+        driver::count_switch(events, from, actuator.mode);
+        actuator.z = z1;
+        let Some(exit) = slew_end::exit(&self.slew_exits, from, actuator.mode) else {
+            return Ok(Some((tau, None)));
+        };
+        let to = &actuator.systems[actuator.mode.index()];
+        let Some(mut pulled) = slew_end::pulled_back(to, exit, &start, tau) else {
+            return Ok(Some((tau, None)));
+        };
+        // On the new mode's manifold, as the state at the switch is (the manifold is
+        // invariant: putting the start on it puts the switch on it).
+        driver::project_onto(&actuator.params, &actuator.hbridge, &mut pulled, actuator.mode);
+        Ok(Some((tau, self.whole_step_from(actuator, h, &pulled)?)))
+    }
+
+    /// Where a slew of the actuator's mode, from its state, into the linear mode ends inside
+    /// an internal step of `h` short of the rails; `None` where it does not or the valve is
+    /// at a stop (its system is not the one the pulled-back start is for).
+    fn slew_end(&self, actuator: &Actuator, h: f64) -> Option<f64> {
+        if actuator.stops != valve::Stops::default() {
+            return None;
+        }
+        let exit = slew_end::exit(&self.slew_exits, actuator.mode, Mode::Linear)?;
+        let (c, z) = (&actuator.params, &actuator.z);
+        let tau = slew_end::end_time(c, exit, z)?;
+        let rate = if actuator.mode == Mode::SlewUp { c.slew_rate } else { -c.slew_rate };
+        (tau < h && (z[U] + rate * tau).abs() < z[RAIL]).then_some(tau)
+    }
+
+    /// The state after a whole internal step of `h` in the actuator's mode from `z0`, on the
+    /// mode's manifold, if the step's propagator is one matrix.
+    fn whole_step_from(
+        &mut self,
+        actuator: &Actuator,
+        h: f64,
+        z0: &Vector,
+    ) -> Result<Option<Vector>, String> {
+        let c = &actuator.params;
+        let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+        let whole = self.cache.get(propagator_key(actuator), sys, h, true, 1)?;
+        if whole.substeps != 1 || !whole.has_matrix() {
+            return Ok(None);
+        }
+        let mut z1 = whole.apply(sys, z0);
+        driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
+        Ok(Some(z1))
     }
 
     /// Driver, coil and valve over `h` in the current mode, put on its manifold: a whole

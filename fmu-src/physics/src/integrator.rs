@@ -96,7 +96,8 @@ impl ChosenIntegrator {
         match params.solver_method {
             SolverMethod::Exact => ChosenIntegrator::Exact(ExactIntegrator::new(actuator)),
             SolverMethod::FixedCost => {
-                ChosenIntegrator::FixedCost(FixedCostIntegrator::new(params.solver_h_internal))
+                let fixed = FixedCostIntegrator::new(params.solver_h_internal, actuator);
+                ChosenIntegrator::FixedCost(fixed)
             }
         }
     }
