@@ -604,4 +604,23 @@ mod tests {
         let case = format!("{off:e} m/s, {stats:?}");
         assert!(off < 3e-5 && (stats.rejected, stats.accepted) == (0, 2), "{case}");
     }
+
+    /// The time a gap closes at a held closing speed and acceleration: at a steady speed
+    /// gap / v; accelerating, sooner, decelerating, later; from rest or moving away, only
+    /// when accelerating towards it (the positive root); never where it stops short.
+    #[test]
+    fn a_gap_closes_at_the_first_root_of_its_quadratic() {
+        let close = |gap: f64, v: f64, a: f64| time_to_close(gap, v, a);
+        assert_eq!(close(3e-6, 0.3, 0.0), Some(1e-5));
+        for (v, a) in [(0.3, 2e3), (0.3, -2e3), (0.0, 2e3), (-0.05, 2e3)] {
+            let t = close(3e-6, v, a).unwrap();
+            let gap_left = 3e-6 - v * t - 0.5 * a * t * t;
+            assert!(gap_left.abs() < 1e-18 && t > 0.0, "v {v}, a {a}: {t:e} s, {gap_left:e}");
+        }
+        assert!(close(3e-6, 0.3, 2e3).unwrap() < 1e-5 && close(3e-6, 0.3, -2e3).unwrap() > 1e-5);
+        // Stops 2.25 um in: never closes; nor moving away and slowing down.
+        assert_eq!(close(3e-6, 0.3, -2e4), None);
+        assert_eq!(close(3e-6, -0.3, -2e3), None);
+        assert_eq!(close(3e-6, 0.0, 0.0), None);
+    }
 }
