@@ -513,15 +513,22 @@ mod tests {
     /// (the second part's spool path a step too long, 26 kPa).
     #[test]
     fn a_step_into_an_end_stop_is_cut_at_the_contact() {
-        let (params, p_supply) = paper_cylinder();
         for side in [1.0, -1.0] {
-            let mut y = equilibrium(&params, p_supply, 0.0).to_array();
-            (y[X], y[V]) = (side * (0.5 * params.stroke - 3e-6), side * 0.3);
-            let spool = opening_spool(side, side * 2.0);
-            let (error, pressures, stats) = one_step_errors(&params, &y, spool, (p_supply, 0.0));
+            let (error, pressures, stats) = at_a_stop(side, -3e-6, 0.3);
             let case = format!("side {side}: {error:e}, {pressures:e} Pa, {stats:?}");
             assert!(error < 3e-4 && pressures < 1e3 && cut_in(2, &stats), "{case}");
         }
+    }
+
+    /// One step from a piston `depth` into the stop on `side` (negative: short of it) moving
+    /// at `speed` into it (negative: out), the spool opening the way it moves: as
+    /// [`one_step_errors`].
+    fn at_a_stop(side: f64, depth: f64, speed: f64) -> (f64, f64, Stats) {
+        let (params, p_supply) = paper_cylinder();
+        let mut y = equilibrium(&params, p_supply, 0.0).to_array();
+        (y[X], y[V]) = (side * (0.5 * params.stroke + depth), side * speed);
+        let way = side * speed.signum();
+        one_step_errors(&params, &y, opening_spool(way, way * 2.0), (p_supply, 0.0))
     }
 
     /// A piston 35 um into either stop, pulled out at 0.3 m/s: the contact force
@@ -530,12 +537,8 @@ mod tests {
     /// the reference (6e-8; one step cut there, 4e-6; one step across it, 7.2e-4).
     #[test]
     fn a_step_out_of_an_end_stop_is_cut_where_the_contact_lets_go() {
-        let (params, p_supply) = paper_cylinder();
         for side in [1.0, -1.0] {
-            let mut y = equilibrium(&params, p_supply, 0.0).to_array();
-            (y[X], y[V]) = (side * (0.5 * params.stroke + 35e-6), -side * 0.3);
-            let spool = opening_spool(-side, -side * 2.0);
-            let (error, pressures, stats) = one_step_errors(&params, &y, spool, (p_supply, 0.0));
+            let (error, pressures, stats) = at_a_stop(side, 35e-6, -0.3);
             let case = format!("side {side}: {error:e}, {pressures:e} Pa, {stats:?}");
             assert!(error < 1e-6 && pressures < 1e3 && cut_in(3, &stats), "{case}");
         }
