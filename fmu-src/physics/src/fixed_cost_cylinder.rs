@@ -626,4 +626,92 @@ mod tests {
         assert_eq!(close(3e-6, -0.3, -2e3), None);
         assert_eq!(close(3e-6, 0.0, 0.0), None);
     }
+
+    /// Where a step that enters the creep band is cut: at the earlier of the band edge's
+    /// interpolation between the step's ends and its time at the starting deceleration; a
+    /// stop (no reversal) has no second cut, a reversal one a band's crossing later.
+    #[test]
+    fn the_band_entry_is_placed_at_the_earlier_estimate() {
+        let (params, p_supply) = paper_cylinder();
+        let edge = CREEP_EDGE * params.v_friction_smooth;
+        let h = STEP;
+        let with_v = |v: f64| {
+            let mut y = equilibrium(&params, p_supply, 0.0).to_array();
+            y[V] = v;
+            y
+        };
+        let slowing = |y: &Vec4, load: f64| {
+            cylinder::acceleration(&params, &CylinderState::from_array(y), load)
+        };
+        // Stopping, pushed on (no deceleration at the start): the interpolation.
+        let (y0, y1) = (with_v(-5e-3), with_v(-1e-4));
+        assert!(slowing(&y0, -200.0) < 0.0);
+        let tau = h * (5e-3 - edge) / (5e-3 - 1e-4);
+        let cut = reversal(&params, &y0, &y1, h, -200.0);
+        assert_eq!(cut, Some(Cut::Reversal { tau, through: None }));
+        // Stopping, slowed down by the friction: still no second cut.
+        assert!(slowing(&y0, 0.0) > 0.0);
+        let cut = reversal(&params, &y0, &y1, h, 0.0);
+        assert!(matches!(cut, Some(Cut::Reversal { through: None, .. })), "{cut:?}");
+        // Reversing under a weak push: the interpolation is the earlier.
+        let (y0, y1) = (with_v(-6.5e-3), with_v(1e-3));
+        let a = slowing(&y0, 0.0);
+        let tau = h * (6.5e-3 - edge) / 7.5e-3;
+        assert!(a > 0.0 && (6.5e-3 - edge) / a > tau, "{a}");
+        let cut = reversal(&params, &y0, &y1, h, 0.0);
+        assert_eq!(cut, Some(Cut::Reversal { tau, through: Some(tau + 2.0 * edge / a) }));
+        // Reversing under a hard push: the time at the starting deceleration.
+        let a = slowing(&y0, 1500.0);
+        let tau = (6.5e-3 - edge) / a;
+        assert!(tau < h * (6.5e-3 - edge) / 7.5e-3, "{a}");
+        let cut = reversal(&params, &y0, &y1, h, 1500.0);
+        assert_eq!(cut, Some(Cut::Reversal { tau, through: Some(tau + 2.0 * edge / a) }));
+        // Staying outside the band, or starting inside it: no such cut.
+        assert_eq!(reversal(&params, &y0, &with_v(-1e-3), h, 0.0), None);
+        assert_eq!(reversal(&params, &with_v(1e-4), &with_v(-1e-3), h, 0.0), None);
+    }
+
+    /// Where a step that reaches an end stop is cut: the earlier of the gap's interpolation
+    /// between the step's ends (where it ended past the surface) and the time the gap closes
+    /// at the starting speed and acceleration, a thousandth short; none where the piston
+    /// stops short of the stop or moves away.
+    #[test]
+    fn the_contact_is_placed_at_the_earlier_estimate() {
+        let (params, p_supply) = paper_cylinder();
+        let (h, half) = (STEP, 0.5 * params.stroke);
+        let at = |x: f64, v: f64| {
+            let mut y = equilibrium(&params, p_supply, 0.0).to_array();
+            (y[X], y[V]) = (x, v);
+            y
+        };
+        // The cut's time on `side`, to rounding of `expected` (the gap is a difference).
+        let placed = |cut: Option<Cut>, expected: f64, side: f64| match cut {
+            Some(Cut::Contact { tau, side: s }) => {
+                s == side && (tau - expected * (1.0 - CONTACT_MARGIN)).abs() < 1e-9 * expected
+            }
+            _ => false,
+        };
+        for side in [1.0, -1.0] {
+            let a = |y: &Vec4, load: f64| {
+                side * cylinder::acceleration(&params, &CylinderState::from_array(y), load)
+            };
+            let y0 = at(side * (half - 3e-6), side * 0.3);
+            // Ended short of the surface: the starting speed and acceleration decide.
+            let t = time_to_close(3e-6, 0.3, a(&y0, 0.0)).unwrap();
+            let cut = contact_entry(&params, &y0, &at(side * (half - 1e-7), 0.0), h, 0.0);
+            assert!(placed(cut, t, side), "side {side}: {cut:?}, {t:e}");
+            // Ended 6 um past it (pushed hard on the way): the interpolation, earlier.
+            let tau = h * 3e-6 / 9e-6;
+            let cut = contact_entry(&params, &y0, &at(side * (half + 6e-6), 0.0), h, 0.0);
+            assert!(tau < t && placed(cut, tau, side), "side {side}: {cut:?}, {tau:e}");
+            // Pulled back hard: stops 2 um short, ends short.
+            let load = -side * 3e5;
+            assert!(time_to_close(3e-6, 0.3, a(&y0, load)).is_none(), "side {side}");
+            let back = at(side * (half - 2e-6), 0.0);
+            assert_eq!(contact_entry(&params, &y0, &back, h, load), None, "side {side}");
+            // Moving away.
+            let away = at(side * (half - 3e-6), -side * 0.3);
+            assert_eq!(contact_entry(&params, &away, &at(0.0, 0.0), h, 0.0), None);
+        }
+    }
 }

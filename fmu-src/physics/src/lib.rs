@@ -434,6 +434,37 @@ mod tests {
         );
     }
 
+    /// fixed_cost builds every exponential it needs when the first step is prepared: none in
+    /// a doStep, through a position loop's gait (a slew at every sample, parts of internal
+    /// steps either side) and 20 Hz current squares (the op-amp to its rails and back, the
+    /// piston from stop to stop).
+    #[test]
+    fn fixed_cost_builds_no_exponential_in_a_step() {
+        let gait = |t: f64| Inputs {
+            x_ref: 15e-3 * (4.0 * std::f64::consts::PI * t).sin(),
+            ..Inputs::PAPER
+        };
+        let square = |t: f64| Inputs {
+            i_ref: if (40.0 * t).fract() < 0.5 { 5e-3 } else { -5e-3 },
+            ..Inputs::PAPER
+        };
+        let runs: [(ControlMode, &dyn Fn(f64) -> Inputs); 2] =
+            [(ControlMode::Position, &gait), (ControlMode::Current, &square)];
+        for (mode, inputs) in runs {
+            let mut p = Params::PAPER;
+            (p.control_mode, p.solver_method) = (mode, SolverMethod::FixedCost);
+            let mut physics = Physics::start(&p, &inputs(0.0), 0.0).unwrap();
+            physics.prepare_first_step(&inputs(0.0), 0.0, 1e-4);
+            let prepared = physics.work().exponentials;
+            for k in 0..1000 {
+                let t = k as f64 * 1e-4;
+                physics.step(&inputs(t), t, 1e-4).unwrap();
+            }
+            assert_eq!(physics.work().exponentials, prepared, "{mode:?}");
+            assert!(physics.actuator.cylinder.state.x.abs() > 1e-3, "{mode:?}: the piston moves");
+        }
+    }
+
     /// A 100 Hz current sine at 1e-4 s steps: each step's command change ends its slew
     /// microseconds in, and the linear mode's output then rises towards its new value, fast
     /// enough that its slope alone predicts the rail within the step. Its curvature says it
