@@ -199,4 +199,31 @@ mod tests {
             }
         }
     }
+
+    /// The quadratic's cases, on a made-up slew whose gap closes at `w0 + w1 t` (rates read
+    /// off the constant 1): a steady close takes gap / w0, either way; a gap that opens, or
+    /// one the slew's slowing stops short of closing, has no end.
+    #[test]
+    fn a_slew_whose_gap_does_not_close_has_no_end() {
+        let c = Coefficients::new(&crate::Params::PAPER).unwrap();
+        let mut z0 = Vector::zeros();
+        (z0[I_CMD], z0[ONE]) = (1e-4, 1.0);
+        let gap = c.kp * 1e-4;
+        let rates = |w0: f64, w1: f64| {
+            let (mut d, mut d_rate) = (Vector::zeros(), Vector::zeros());
+            (d[ONE], d_rate[ONE]) = (w0, w1);
+            [d, d_rate]
+        };
+        let steady = end_time(&c, &rates(2e7, 0.0), &z0).unwrap();
+        assert!((steady - gap / 2e7).abs() < 1e-15 * steady, "{steady:e}");
+        assert_eq!(end_time(&c, &rates(-2e7, 0.0), &z0), None, "opening");
+        // w0^2 + 2 w1 gap < 0: the gap's fall stops before it closes.
+        let stopping = -1.01 * 2e7 * 2e7 / (2.0 * gap);
+        assert_eq!(end_time(&c, &rates(2e7, stopping), &z0), None, "stopping short");
+        let just = -0.99 * 2e7 * 2e7 / (2.0 * gap);
+        assert!(end_time(&c, &rates(2e7, just), &z0).unwrap() > steady, "slowed");
+        z0[I_CMD] = -1e-4;
+        let down = end_time(&c, &rates(-2e7, 0.0), &z0).unwrap();
+        assert!((down - steady).abs() < 1e-15 * steady, "down {down:e}");
+    }
 }
