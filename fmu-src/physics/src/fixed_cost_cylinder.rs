@@ -87,7 +87,7 @@ pub(crate) fn step(
 
 /// The state after one internal step of `h` from `y0`: one Rodas3 step, or, where that step
 /// crossed something ([`cut_of`]), two or three (the one counted as rejected); in an end
-/// stop's contact, two halves ([`halves_in_contact`]).
+/// stop's contact, two halves ([`InternalStep::halves_in_contact`]).
 fn advance(
     params: &CylinderParams,
     y0: &Vec4,
@@ -96,11 +96,12 @@ fn advance(
     loads: (f64, f64),
     stats: &mut Stats,
 ) -> Result<Vec4, String> {
-    let path = cubic_path(spool, h);
+    let step = InternalStep { params, path: cubic_path(spool, h), h, loads };
     let y1 = if moving_in_contact(params, y0) {
-        halves_in_contact(params, y0, &path, h, loads, stats)?
+        step.halves_in_contact(y0, stats)?
     } else {
-        let (whole, err) = rodas3_fixed_step(params, (y0, h), &path, loads, HALVING_RTOL, stats)?;
+        let path = &step.path;
+        let (whole, err) = rodas3_fixed_step(params, (y0, h), path, loads, HALVING_RTOL, stats)?;
         match cut_of(params, (y0, &whole), err, h, loads.1) {
             None => {
                 stats.accepted += 1;
@@ -108,7 +109,7 @@ fn advance(
             }
             Some(cut) => {
                 stats.rejected += 1;
-                cut_in_parts(params, y0, &path, (h, cut), loads, stats)?
+                step.cut_in_parts(y0, cut, stats)?
             }
         }
     };
@@ -118,60 +119,69 @@ fn advance(
     Ok(y1)
 }
 
-/// The step of `h` from `y0` again, in the parts `cut` makes: up to it, then (a reversal)
-/// through the creep band, then the rest; a part that ended at a contact put on the stop.
-fn cut_in_parts(
-    params: &CylinderParams,
-    y0: &Vec4,
-    path: &impl Fn(f64) -> (f64, f64),
-    (h, cut): (f64, Cut),
-    loads: (f64, f64),
-    stats: &mut Stats,
-) -> Result<Vec4, String> {
-    let tau = cut.at(h);
-    // A reversal's second cut, where it falls inside the step.
-    let through = match cut {
-        Cut::Reversal { through: Some(t), .. } if t > tau && t < h => t,
-        _ => tau,
-    };
-    let mut y = along(params, y0, path, (0.0, tau), loads, stats)?;
-    if let Cut::Contact { side, .. } = cut {
-        onto_stop(params, side, &mut y);
-    }
-    if through > tau {
-        y = along(params, &y, path, (tau, through), loads, stats)?;
-    }
-    along(params, &y, path, (through, h), loads, stats)
-}
-
-/// A step that starts in an end stop's contact, the piston moving: two half steps, the
-/// half in which the contact force reaches zero cut there ([`separation`]): at most three
-/// Rodas3 steps. The contact's spring and damper ring at 4.5e3 rad/s with the chambers:
-/// one 25 us step over a bounce was up to 7e-5 m/s off, an error the next impact magnifies
-/// (with halves, the 20 Hz squares' worst output went from 2.5e-3 to 1.8e-3 of its range).
-fn halves_in_contact(
-    params: &CylinderParams,
-    y0: &Vec4,
-    path: &impl Fn(f64) -> (f64, f64),
+/// One internal step of `h` being taken in parts: the cylinder, the spool's path over the
+/// whole step, the supply pressure and load.
+struct InternalStep<'a, P: Fn(f64) -> (f64, f64)> {
+    params: &'a CylinderParams,
+    path: P,
     h: f64,
     loads: (f64, f64),
-    stats: &mut Stats,
-) -> Result<Vec4, String> {
-    let (mut y, mut cut) = (*y0, false);
-    for (t0, t1) in [(0.0, 0.5 * h), (0.5 * h, h)] {
-        let y1 = along(params, &y, path, (t0, t1), loads, stats)?;
-        y = match separation(params, &y, &y1, t1 - t0).filter(|_| !cut) {
-            Some(separated) => {
-                (cut, stats.rejected, stats.accepted) =
-                    (true, stats.rejected + 1, stats.accepted - 1);
-                let t = t0 + separated.at(t1 - t0);
-                let left = along(params, &y, path, (t0, t), loads, stats)?;
-                along(params, &left, path, (t, t1), loads, stats)?
-            }
-            None => y1,
+}
+
+impl<P: Fn(f64) -> (f64, f64)> InternalStep<'_, P> {
+    /// The step from `y0` again, in the parts `cut` makes: up to it, then (a reversal)
+    /// through the creep band, then the rest; a part that ended at a contact put on the stop.
+    fn cut_in_parts(&self, y0: &Vec4, cut: Cut, stats: &mut Stats) -> Result<Vec4, String> {
+        let (h, tau) = (self.h, cut.at(self.h));
+        // A reversal's second cut, where it falls inside the step.
+        let through = match cut {
+            Cut::Reversal { through: Some(t), .. } if t > tau && t < h => t,
+            _ => tau,
         };
+        let mut y = self.along(y0, (0.0, tau), stats)?;
+        if let Cut::Contact { side, .. } = cut {
+            onto_stop(self.params, side, &mut y);
+        }
+        if through > tau {
+            y = self.along(&y, (tau, through), stats)?;
+        }
+        self.along(&y, (through, h), stats)
     }
-    Ok(y)
+
+    /// A step that starts in an end stop's contact, the piston moving: two half steps, the
+    /// half in which the contact force reaches zero cut there ([`separation`]): at most three
+    /// Rodas3 steps. The contact's spring and damper ring at 4.5e3 rad/s with the chambers:
+    /// one 25 us step over a bounce was up to 7e-5 m/s off, an error the next impact
+    /// magnifies (with halves, the 20 Hz squares' worst output went from 2.5e-3 to 1.8e-3 of
+    /// its range).
+    fn halves_in_contact(&self, y0: &Vec4, stats: &mut Stats) -> Result<Vec4, String> {
+        let (mut y, mut cut) = (*y0, false);
+        for (t0, t1) in [(0.0, 0.5 * self.h), (0.5 * self.h, self.h)] {
+            let y1 = self.along(&y, (t0, t1), stats)?;
+            y = match separation(self.params, &y, &y1, t1 - t0).filter(|_| !cut) {
+                Some(separated) => {
+                    (cut, stats.rejected, stats.accepted) =
+                        (true, stats.rejected + 1, stats.accepted - 1);
+                    let t = t0 + separated.at(t1 - t0);
+                    let left = self.along(&y, (t0, t), stats)?;
+                    self.along(&left, (t, t1), stats)?
+                }
+                None => y1,
+            };
+        }
+        Ok(y)
+    }
+
+    /// One accepted Rodas3 step from `y` over `(t0, t1)` of the internal step.
+    fn along(&self, y: &Vec4, (t0, t1): (f64, f64), stats: &mut Stats) -> Result<Vec4, String> {
+        if t1 <= t0 {
+            return Ok(*y); // a cut estimated at the step's start: nothing before it
+        }
+        let piece = |tau: f64| (self.path)(t0 + tau);
+        stats.accepted += 1;
+        let (y1, _) = rodas3_fixed_step(self.params, (y, t1 - t0), &piece, self.loads, 1.0, stats)?;
+        Ok(y1)
+    }
 }
 
 /// Whether a step from `y0` starts in an end stop's contact with the piston moving (outside
@@ -179,24 +189,6 @@ fn halves_in_contact(
 fn moving_in_contact(params: &CylinderParams, y0: &Vec4) -> bool {
     let moving = y0[V].abs() > CREEP_EDGE * params.v_friction_smooth;
     params.port == RodPort::Force && y0[X].abs() > 0.5 * params.stroke && moving
-}
-
-/// One accepted Rodas3 step from `y` over `(t0, t1)` of an internal step whose spool moves
-/// on `path`.
-fn along(
-    params: &CylinderParams,
-    y: &Vec4,
-    path: &impl Fn(f64) -> (f64, f64),
-    (t0, t1): (f64, f64),
-    loads: (f64, f64),
-    stats: &mut Stats,
-) -> Result<Vec4, String> {
-    if t1 <= t0 {
-        return Ok(*y); // a cut estimated at the step's start: nothing before it
-    }
-    let piece = |tau: f64| path(t0 + tau);
-    stats.accepted += 1;
-    Ok(rodas3_fixed_step(params, (y, t1 - t0), &piece, loads, 1.0, stats)?.0)
 }
 
 /// Where a step from `y0` that ended at `y1` with scaled error estimate `err` is to be cut:
