@@ -101,8 +101,9 @@ fn advance(
         step.halves_in_contact(y0, stats)?
     } else {
         let path = &step.path;
-        let (whole, err) = rodas3_fixed_step(params, (y0, h), path, loads, HALVING_RTOL, stats)?;
-        match cut_of(params, (y0, &whole), err, h, loads.1) {
+        let (whole, err, acceleration) =
+            rodas3_fixed_step(params, (y0, h), path, loads, HALVING_RTOL, stats)?;
+        match cut_of(params, (y0, &whole), err, h, acceleration) {
             None => {
                 stats.accepted += 1;
                 whole
@@ -179,7 +180,8 @@ impl<P: Fn(f64) -> (f64, f64)> InternalStep<'_, P> {
         }
         let piece = |tau: f64| (self.path)(t0 + tau);
         stats.accepted += 1;
-        let (y1, _) = rodas3_fixed_step(self.params, (y, t1 - t0), &piece, self.loads, 1.0, stats)?;
+        let (y1, ..) =
+            rodas3_fixed_step(self.params, (y, t1 - t0), &piece, self.loads, 1.0, stats)?;
         Ok(y1)
     }
 }
@@ -195,22 +197,23 @@ fn moving_in_contact(params: &CylinderParams, y0: &Vec4) -> bool {
 /// at the first end-stop contact or separation, creep-band exit or velocity reversal inside
 /// it, else in the middle if the estimate failed [`HALVING_RTOL`], else nowhere. With the
 /// motion port the host moves the rod: contact and friction act on the reported rod force
-/// alone, not on the state stepped here, so only the estimate cuts.
+/// alone, not on the state stepped here, so only the estimate cuts. `acceleration`: the
+/// rod's at `y0`, as the step computed it.
 fn cut_of(
     params: &CylinderParams,
     (y0, y1): (&Vec4, &Vec4),
     err: f64,
     h: f64,
-    load: f64,
+    acceleration: f64,
 ) -> Option<Cut> {
     let failed = (err > 1.0).then_some(Cut::Halve);
     if params.port == RodPort::Motion {
         return failed;
     }
     let located = [
-        contact_entry(params, y0, y1, h, load),
+        contact_entry(params, y0, y1, h, acceleration),
         creep_exit(params, y0, y1, h),
-        reversal(params, y0, y1, h, load),
+        reversal(params, y0, y1, h, acceleration),
         separation(params, y0, y1, h),
     ];
     located.into_iter().flatten().min_by(|a, b| a.at(h).total_cmp(&b.at(h))).or(failed)
@@ -224,13 +227,12 @@ fn cut_of(
 /// speed alone a piston accelerating into the stop at 234 m/s^2 was found 0.18 us late, 61
 /// nm inside, where the contact's damping had already pushed back with 3 kN: the step was
 /// 0.75 % off in the velocity.)
-fn contact_entry(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64, load: f64) -> Option<Cut> {
+fn contact_entry(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64, a0: f64) -> Option<Cut> {
     let half = 0.5 * params.stroke;
-    let acceleration = cylinder::acceleration(params, &CylinderState::from_array(y0), load);
     [1.0, -1.0].into_iter().find_map(|side: f64| {
         let (gap0, gap1) = (half - side * y0[X], half - side * y1[X]);
         let interpolated = if gap1 < 0.0 { h * gap0 / (gap0 - gap1) } else { h };
-        let closing = time_to_close(gap0, side * y0[V], side * acceleration).unwrap_or(h);
+        let closing = time_to_close(gap0, side * y0[V], side * a0).unwrap_or(h);
         let reached = closing.min(interpolated);
         (gap0 > 0.0 && reached < h)
             .then_some(Cut::Contact { tau: reached * (1.0 - CONTACT_MARGIN), side })
@@ -289,7 +291,7 @@ fn creep_exit(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64) -> Option<C
 /// could not follow, late), so that the flip falls into the second part, whose friction
 /// slope is the secant across it (cut at the zero, Rodas3's last stages of the first part
 /// meet the flip: twice the error).
-fn reversal(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64, load: f64) -> Option<Cut> {
+fn reversal(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64, a0: f64) -> Option<Cut> {
     let (v0, v1) = (y0[V], y1[V]);
     let edge = CREEP_EDGE * params.v_friction_smooth;
     let to_edge = v0.abs() - edge;
@@ -298,8 +300,7 @@ fn reversal(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64, load: f64) ->
         return None;
     }
     let interpolated = h * to_edge / (v0 - v1).abs();
-    let slowing =
-        -v0.signum() * cylinder::acceleration(params, &CylinderState::from_array(y0), load);
+    let slowing = -v0.signum() * a0;
     let at_start_rate = if slowing > 0.0 { to_edge / slowing } else { h };
     let tau = interpolated.min(at_start_rate);
     let crossing = 2.0 * CREEP_EDGE * params.v_friction_smooth / slowing.abs().max(1e-300);
@@ -639,28 +640,29 @@ mod tests {
         let (y0, y1) = (with_v(-5e-3), with_v(-1e-4));
         assert!(slowing(&y0, -200.0) < 0.0);
         let tau = h * (5e-3 - edge) / (5e-3 - 1e-4);
-        let cut = reversal(&params, &y0, &y1, h, -200.0);
+        let cut = reversal(&params, &y0, &y1, h, slowing(&y0, -200.0));
         assert_eq!(cut, Some(Cut::Reversal { tau, through: None }));
         // Stopping, slowed down by the friction: still no second cut.
         assert!(slowing(&y0, 0.0) > 0.0);
-        let cut = reversal(&params, &y0, &y1, h, 0.0);
+        let cut = reversal(&params, &y0, &y1, h, slowing(&y0, 0.0));
         assert!(matches!(cut, Some(Cut::Reversal { through: None, .. })), "{cut:?}");
         // Reversing under a weak push: the interpolation is the earlier.
         let (y0, y1) = (with_v(-6.5e-3), with_v(1e-3));
         let a = slowing(&y0, 0.0);
         let tau = h * (6.5e-3 - edge) / 7.5e-3;
         assert!(a > 0.0 && (6.5e-3 - edge) / a > tau, "{a}");
-        let cut = reversal(&params, &y0, &y1, h, 0.0);
+        let cut = reversal(&params, &y0, &y1, h, slowing(&y0, 0.0));
         assert_eq!(cut, Some(Cut::Reversal { tau, through: Some(tau + 2.0 * edge / a) }));
         // Reversing under a hard push: the time at the starting deceleration.
         let a = slowing(&y0, 1500.0);
         let tau = (6.5e-3 - edge) / a;
         assert!(tau < h * (6.5e-3 - edge) / 7.5e-3, "{a}");
-        let cut = reversal(&params, &y0, &y1, h, 1500.0);
+        let cut = reversal(&params, &y0, &y1, h, slowing(&y0, 1500.0));
         assert_eq!(cut, Some(Cut::Reversal { tau, through: Some(tau + 2.0 * edge / a) }));
         // Staying outside the band, or starting inside it: no such cut.
-        assert_eq!(reversal(&params, &y0, &with_v(-1e-3), h, 0.0), None);
-        assert_eq!(reversal(&params, &with_v(1e-4), &with_v(-1e-3), h, 0.0), None);
+        assert_eq!(reversal(&params, &y0, &with_v(-1e-3), h, slowing(&y0, 0.0)), None);
+        let inside = with_v(1e-4);
+        assert_eq!(reversal(&params, &inside, &with_v(-1e-3), h, slowing(&inside, 0.0)), None);
     }
 
     /// Where a step that reaches an end stop is cut: the earlier of the gap's interpolation
@@ -684,26 +686,30 @@ mod tests {
             _ => false,
         };
         for side in [1.0, -1.0] {
-            let a = |y: &Vec4, load: f64| {
-                side * cylinder::acceleration(&params, &CylinderState::from_array(y), load)
+            let acceleration = |y: &Vec4, load: f64| {
+                cylinder::acceleration(&params, &CylinderState::from_array(y), load)
             };
+            let a = |y: &Vec4, load: f64| side * acceleration(y, load);
             let y0 = at(side * (half - 3e-6), side * 0.3);
+            let a0 = acceleration(&y0, 0.0);
             // Ended short of the surface: the starting speed and acceleration decide.
             let t = time_to_close(3e-6, 0.3, a(&y0, 0.0)).unwrap();
-            let cut = contact_entry(&params, &y0, &at(side * (half - 1e-7), 0.0), h, 0.0);
+            let cut = contact_entry(&params, &y0, &at(side * (half - 1e-7), 0.0), h, a0);
             assert!(placed(cut, t, side), "side {side}: {cut:?}, {t:e}");
             // Ended 6 um past it (pushed hard on the way): the interpolation, earlier.
             let tau = h * 3e-6 / 9e-6;
-            let cut = contact_entry(&params, &y0, &at(side * (half + 6e-6), 0.0), h, 0.0);
+            let cut = contact_entry(&params, &y0, &at(side * (half + 6e-6), 0.0), h, a0);
             assert!(tau < t && placed(cut, tau, side), "side {side}: {cut:?}, {tau:e}");
             // Pulled back hard: stops 2 um short, ends short.
             let load = -side * 3e5;
             assert!(time_to_close(3e-6, 0.3, a(&y0, load)).is_none(), "side {side}");
             let back = at(side * (half - 2e-6), 0.0);
-            assert_eq!(contact_entry(&params, &y0, &back, h, load), None, "side {side}");
+            let pulled = acceleration(&y0, load);
+            assert_eq!(contact_entry(&params, &y0, &back, h, pulled), None, "side {side}");
             // Moving away.
             let away = at(side * (half - 3e-6), -side * 0.3);
-            assert_eq!(contact_entry(&params, &away, &at(0.0, 0.0), h, 0.0), None);
+            let a_away = acceleration(&away, 0.0);
+            assert_eq!(contact_entry(&params, &away, &at(0.0, 0.0), h, a_away), None);
         }
     }
 }

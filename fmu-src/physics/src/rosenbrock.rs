@@ -498,8 +498,9 @@ fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
 /// One Rodas3 step of `h` from `y` without step control (the fixed-cost integrator's), the
 /// spool on `spool` (position and rate at a time into the step), lifted to the cavitation
 /// floor; with its embedded error estimate scaled by `rtol` ([`STATE_SCALE`]), infinite if
-/// a stage was not finite. Near zero velocity the friction's slope in its Jacobian is the
-/// secant over the step ([`secant_friction`]).
+/// a stage was not finite; and the rod's acceleration at the step's start (the step's own
+/// first rate, for the fixed-cost cuts' estimates). Near zero velocity the friction's slope
+/// in its Jacobian is the secant over the step ([`secant_friction`]).
 pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
     params: &CylinderParams,
     (y, h): (&Vec4, f64),
@@ -507,13 +508,13 @@ pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
     (p_supply, load): (f64, f64),
     rtol: f64,
     stats: &mut Stats,
-) -> Result<(Vec4, f64), String> {
+) -> Result<(Vec4, f64, f64), String> {
     let model = Rhs { params, p_supply, load, spool };
     let mut here = model.linearise(0.0, y, stats);
     secant_friction(params, y, here.f0[V], h, &mut here.jac);
     let (mut y_new, err) = rosenbrock_step(&RODAS3, &model, &here, (0.0, y, h), rtol, stats)?;
     clamp_to_floor(params, &mut y_new, stats);
-    Ok((y_new, err))
+    Ok((y_new, err, here.f0[V]))
 }
 
 /// x^(1/4) by two square roots (exact to rounding, a fraction of `powf`'s cost).
