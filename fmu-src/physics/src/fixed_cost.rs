@@ -173,7 +173,7 @@ impl FixedCostIntegrator {
     /// the valve at a stop: its end is the root of a quadratic ([`slew_end::end_time`]:
     /// exact, no search), the state is taken there and settled, and the linear mode's end of
     /// the step is its start pulled back to the step's ([`slew_end::pulled_back`]) through
-    /// the whole step's propagator, where that is one matrix (else `None`: the rest goes by
+    /// the whole step's propagator (where the pair does not qualify `None`: the rest goes by
     /// the ladder). Its end and that state; `None` for any other step.
     fn slew_from_start(
         &mut self,
@@ -200,7 +200,7 @@ impl FixedCostIntegrator {
         // On the new mode's manifold, as the state at the switch is (the manifold is
         // invariant: putting the start on it puts the switch on it).
         driver::project_onto(&actuator.params, &actuator.hbridge, &mut pulled, actuator.mode);
-        Ok(Some((tau, self.whole_step_from(actuator, h, &pulled)?)))
+        Ok(Some((tau, Some(self.propagate_from(actuator, &pulled, h, true)?))))
     }
 
     /// Where a slew of the actuator's mode, from its state, into the linear mode ends inside
@@ -217,33 +217,25 @@ impl FixedCostIntegrator {
         (tau < h && (z[U] + rate * tau).abs() < z[RAIL]).then_some(tau)
     }
 
-    /// The state after a whole internal step of `h` in the actuator's mode from `z0`, on the
-    /// mode's manifold, if the step's propagator is one matrix.
-    fn whole_step_from(
-        &mut self,
-        actuator: &Actuator,
-        h: f64,
-        z0: &Vector,
-    ) -> Result<Option<Vector>, String> {
-        let c = &actuator.params;
-        let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
-        let whole = self.cache.get(propagator_key(actuator), sys, h, true, 1)?;
-        if whole.substeps != 1 || !whole.has_matrix() {
-            return Ok(None);
-        }
-        let mut z1 = whole.apply(sys, z0);
-        driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
-        Ok(Some(z1))
+    /// Driver, coil and valve over `h` in the current mode from the actuator's state (see
+    /// [`Self::propagate_from`]).
+    fn propagate(&mut self, actuator: &Actuator, h: f64, nominal: bool) -> Result<Vector, String> {
+        self.propagate_from(actuator, &actuator.z, h, nominal)
     }
 
-    /// Driver, coil and valve over `h` in the current mode, put on its manifold: a whole
-    /// internal step (`nominal`) by its cached propagator, a part of one by the mode's
-    /// ladder. The H-bridge's switched spans go by Taylor series, as in the exact
+    /// Driver, coil and valve over `h` in the actuator's current mode from `z`, put on its
+    /// manifold: a whole internal step (`nominal`) by its cached propagator, a part of one by
+    /// the mode's ladder. The H-bridge's switched spans go by Taylor series, as in the exact
     /// integrator (short and irregular: a series beats an exponential).
-    fn propagate(&mut self, actuator: &Actuator, h: f64, nominal: bool) -> Result<Vector, String> {
+    fn propagate_from(
+        &mut self,
+        actuator: &Actuator,
+        z: &Vector,
+        h: f64,
+        nominal: bool,
+    ) -> Result<Vector, String> {
         let c = &actuator.params;
         let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
-        let z = &actuator.z;
         let mut z1 = if actuator.mode == Mode::Switched {
             Propagator::taylor_only(sys, h, 1).apply_all(sys, z)
         } else if nominal {
