@@ -143,9 +143,7 @@ impl<P: Fn(f64) -> (f64, f64)> InternalStep<'_, P> {
         if let Cut::Contact { side, .. } = cut {
             onto_stop(self.params, side, &mut y);
         }
-        if through > tau {
-            y = self.along(&y, (tau, through), stats)?;
-        }
+        let y = self.along(&y, (tau, through), stats)?; // nothing where there is no second cut
         self.along(&y, (through, h), stats)
     }
 
@@ -303,7 +301,7 @@ fn reversal(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64, a0: f64) -> O
     let slowing = -v0.signum() * a0;
     let at_start_rate = if slowing > 0.0 { to_edge / slowing } else { h };
     let tau = interpolated.min(at_start_rate);
-    let crossing = 2.0 * CREEP_EDGE * params.v_friction_smooth / slowing.abs().max(1e-300);
+    let crossing = 2.0 * edge / slowing.abs().max(1e-300);
     Some(Cut::Reversal { tau, through: (reversed && slowing > 0.0).then_some(tau + crossing) })
 }
 
