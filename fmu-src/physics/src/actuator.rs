@@ -28,6 +28,11 @@ pub(crate) struct Actuator {
     pub(crate) work: Work,
 }
 
+/// The propagator caches' name for a (mode, stops) pair: each pair has a system of its own.
+pub(crate) fn system_key(mode: Mode, stops: valve::Stops) -> usize {
+    mode.index() + MODES.len() * stops.code()
+}
+
 /// The system of each driver mode for the coefficients `c`; refused where the parameters
 /// overflow them.
 pub(crate) fn mode_systems(c: &Coefficients) -> Result<[ModeSystem; MODES.len()], String> {
@@ -43,6 +48,11 @@ pub(crate) fn mode_systems(c: &Coefficients) -> Result<[ModeSystem; MODES.len()]
 }
 
 impl Actuator {
+    /// The propagator caches' name for the actuator's (mode, stops) pair ([`system_key`]).
+    pub(crate) fn system_key(&self) -> usize {
+        system_key(self.mode, self.stops)
+    }
+
     /// Builds the mode systems and puts the model in equilibrium for `inputs` at
     /// `start_time` (the sampling clocks of the digital loops count from time 0).
     pub(crate) fn start(

@@ -56,11 +56,6 @@ impl ExactIntegrator {
     }
 }
 
-/// The propagator cache's name for the actuator's (mode, stops) pair.
-fn propagator_key(actuator: &Actuator) -> usize {
-    actuator.mode.index() + MODES.len() * actuator.stops.code()
-}
-
 impl Integrator for ExactIntegrator {
     /// Continuous evolution over the segment with state events (driver mode changes). Each
     /// mode runs until an event or the segment's end ([`ExactIntegrator::propagate_mode`]),
@@ -106,7 +101,7 @@ impl Integrator for ExactIntegrator {
     /// as `evolve` takes them after a slew from a segment's start) over the communication
     /// step and the outer loop's period.
     fn prepare(&mut self, actuator: &Actuator, step: f64) {
-        let key = propagator_key(actuator);
+        let key = actuator.system_key();
         let c = &actuator.params;
         let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
         let looping = c.loops.mode != ControlMode::Current;
@@ -157,7 +152,7 @@ impl ExactIntegrator {
         // miss, an exponential for nothing): Taylor series serve if it lasts after all,
         // on sub-steps they cover in one piece (others, and absurd parameters, go through
         // the propagator's checks).
-        let key = propagator_key(actuator);
+        let key = actuator.system_key();
         let pieces = spool_path_pieces(span, actuator.params.wn);
         let first = span / pieces as f64;
         let brief_slew = first * sys.radius <= 1.0

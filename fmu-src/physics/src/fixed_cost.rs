@@ -13,7 +13,7 @@
 //!   [`super::fixed_cost_cylinder`] (Rodas3; two half steps where one crosses a kink), the
 //!   spool on the cubic through its positions and velocities at the step's ends.
 
-use super::actuator::{current_system, Actuator};
+use super::actuator::{current_system, system_key, Actuator};
 use super::augmented_state::{RAIL, U};
 use super::dyadic_ladder::DyadicLadders;
 use super::fixed_cost_cylinder as cylinder_step;
@@ -53,16 +53,6 @@ impl FixedCostIntegrator {
     }
 }
 
-/// The propagator cache's name for the actuator's (mode, stops) pair.
-fn propagator_key(actuator: &Actuator) -> usize {
-    mode_key(actuator.mode, actuator.stops)
-}
-
-/// The propagator cache's name for a (mode, stops) pair.
-fn mode_key(mode: Mode, stops: valve::Stops) -> usize {
-    mode.index() + MODES.len() * stops.code()
-}
-
 impl Integrator for FixedCostIntegrator {
     fn evolve(
         &mut self,
@@ -94,7 +84,7 @@ impl Integrator for FixedCostIntegrator {
         for span in [Some(step), looping.then(|| 1.0 / c.loops.f_sample)].into_iter().flatten() {
             let h = span / self.internal_steps(span) as f64;
             for mode in MODES.into_iter().filter(|&m| m != Mode::Switched) {
-                let key = mode_key(mode, actuator.stops);
+                let key = system_key(mode, actuator.stops);
                 let sys = actuator.systems[mode.index()].with_stops(c, actuator.stops);
                 // A mode this driver never enters may have no propagator: nothing to build.
                 let _ = self.cache.get(key, &sys, h, true, 1);
@@ -239,9 +229,9 @@ impl FixedCostIntegrator {
         let mut z1 = if actuator.mode == Mode::Switched {
             Propagator::taylor_only(sys, h, 1).apply_all(sys, z)
         } else if nominal {
-            self.cache.get(propagator_key(actuator), sys, h, true, 1)?.apply_all(sys, z)
+            self.cache.get(actuator.system_key(), sys, h, true, 1)?.apply_all(sys, z)
         } else {
-            self.ladders.propagate(propagator_key(actuator), sys, h, z)?
+            self.ladders.propagate(actuator.system_key(), sys, h, z)?
         };
         driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
         Ok(z1)
