@@ -28,7 +28,7 @@ use super::cylinder::{
     derivatives, next_cavitation_switch, next_contact_switch, CylinderParams, CylinderState, Mat4,
     Vec4, N_STATES, PA, PB, V,
 };
-use super::cylinder_jacobian::{linearise, secant_friction};
+use super::cylinder_jacobian::{linearise, secant_cavitation, secant_friction};
 use super::lu4::Lu4;
 
 /// A Rosenbrock method in the transformed form of Hairer & Wanner and of KPP (Sandu et al.):
@@ -500,7 +500,8 @@ fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
 /// floor; with its embedded error estimate scaled by `rtol` ([`STATE_SCALE`]), infinite if
 /// a stage was not finite; and the rod's acceleration at the step's start (the step's own
 /// first rate, for the fixed-cost cuts' estimates). Near zero velocity the friction's slope
-/// in its Jacobian is the secant over the step ([`secant_friction`]).
+/// in its Jacobian is the secant over the step ([`secant_friction`]), and so is the
+/// cavitation fade's for a chamber emptied into the band ([`secant_cavitation`]).
 pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
     params: &CylinderParams,
     (y, h): (&Vec4, f64),
@@ -512,6 +513,7 @@ pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
     let model = Rhs { params, p_supply, load, spool };
     let mut here = model.linearise(0.0, y, stats);
     secant_friction(params, y, here.f0[V], h, &mut here.jac);
+    secant_cavitation(params, y, &here.f0, h, &mut here.jac);
     let (mut y_new, err) = rosenbrock_step(&RODAS3, &model, &here, (0.0, y, h), rtol, stats)?;
     clamp_to_floor(params, &mut y_new, stats);
     Ok((y_new, err, here.f0[V]))
