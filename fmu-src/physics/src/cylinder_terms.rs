@@ -230,3 +230,156 @@ pub(crate) fn chamber_terms(
         pressure_rates: [dp_a, dp_b],
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::CylinderLoadParams;
+    use std::f64::consts::FRAC_PI_4;
+
+    const P_SUPPLY: f64 = 6.8948e6;
+
+    /// The paper's cylinder with the return line at `p_tank` above atmosphere: the default
+    /// tank at 0 cannot tell a law that measures from the tank from one that does not.
+    fn with_tank(p_tank: f64) -> CylinderParams {
+        let p = CylinderParams::default();
+        CylinderParams { load: CylinderLoadParams { p_tank, ..p.load }, ..p }
+    }
+
+    /// The relief valve's rise is counted from the tank (`d = p - p_T - p_crack`): with the
+    /// return line at 3 bar it opens at `p_T + p_crack`, then follows `Q_r s^2` over the
+    /// override (`s = d/dp_ov`) and `Q_r (2 s - 1)` beyond, with their slopes.
+    #[test]
+    fn relief_flow_rises_from_the_tank_pressure() {
+        let p = with_tank(3e5);
+        let (crack, over, rated) = (p.relief_p_crack, p.relief_dp_override, p.relief_q_rated);
+        let opening = p.p_tank + crack;
+        // Shut past the gauge cracking pressure, up to and at the setting above tank.
+        assert_eq!(relief_flow(&p, crack + 0.5 * p.p_tank), (0.0, 0.0));
+        assert_eq!(relief_flow(&p, opening), (0.0, 0.0));
+        for s in [0.2, 0.7, 1.0, 1.6, 4.0] {
+            let (q, dq) = relief_flow(&p, opening + s * over);
+            let (q_law, dq_law) = if s < 1.0 {
+                (rated * s * s, 2.0 * rated * s / over)
+            } else {
+                (rated * (2.0 * s - 1.0), 2.0 * rated / over)
+            };
+            assert!((q - q_law).abs() <= 1e-9 * q_law, "s = {s}: {q:e} vs {q_law:e}");
+            assert!((dq - dq_law).abs() <= 1e-9 * dq_law, "s = {s}: {dq:e} vs {dq_law:e}");
+        }
+    }
+
+    /// With the valve closed a chamber's net inflow is the piston's displacement and the
+    /// leakage: `Q_A = -A_A v - C_l (p_A - p_B) - C_e (p_A - p_T)`, `Q_B = A_B v + C_l (p_A -
+    /// p_B) - C_e (p_B - p_T)`, the external leak measured from the tank (here at 2 bar); its
+    /// pressure rate `beta / V` times that, with `V_A = V_0 + A_A (x + S/2)`, `V_B = V_0 + A_B
+    /// (S/2 - x)` (no fade: the chambers are far above the cavitation band).
+    #[test]
+    fn leakage_and_displacement_make_the_chambers_net_inflows() {
+        let base = with_tank(2e5);
+        let p = CylinderParams {
+            load: CylinderLoadParams { c_leak: 1e-12, c_leak_external: 3e-13, ..base.load },
+            ..base
+        };
+        let area_a = FRAC_PI_4 * p.bore * p.bore;
+        let area_b = area_a - FRAC_PI_4 * p.rod * p.rod;
+        let x = 0.01;
+        let volumes =
+            [p.v_dead + area_a * (x + 0.5 * p.stroke), p.v_dead + area_b * (0.5 * p.stroke - x)];
+        for (p_a, p_b, v) in [(5e6, 1e6, 0.0), (1.5e6, 4e6, 0.02), (1e6, 3e5, -0.01)] {
+            let s = CylinderState { p_a, p_b, x, v };
+            let terms = chamber_terms(&p, &s, 0.0, P_SUPPLY);
+            let internal = p.c_leak * (p_a - p_b);
+            let external =
+                [p.c_leak_external * (p_a - p.p_tank), p.c_leak_external * (p_b - p.p_tank)];
+            let parts =
+                [[-area_a * v, -internal, -external[0]], [area_b * v, internal, -external[1]]];
+            for k in 0..2 {
+                let inflow: f64 = parts[k].iter().sum();
+                // Rounding of the sum: a few ulps of its largest part.
+                let scale = parts[k].iter().map(|q| q.abs()).fold(0.0, f64::max);
+                assert!((terms.inflows[k] - inflow).abs() <= 1e-14 * scale, "{k} {s:?}");
+                let rate = p.beta / volumes[k] * inflow;
+                let rate_scale = p.beta / volumes[k] * scale;
+                assert!((terms.pressure_rates[k] - rate).abs() <= 1e-13 * rate_scale, "{k} {s:?}");
+            }
+        }
+    }
+
+    /// A chamber below the cavitation floor (rounding, or a floor raised by a retune of
+    /// `hydraulics.p_cavitation` while the chamber sat at the old one, where the next step
+    /// linearises) is read at the floor: the flows are the floor's, with no slope in that
+    /// chamber's pressure; at the floor itself the slope is the orifice law's.
+    #[test]
+    fn port_flows_read_a_pressure_below_the_floor_at_the_floor() {
+        let p = CylinderParams::default();
+        let floor = p.p_cavitation;
+        let slopes = |f: &PortFlows| [f.dqa_dpa, f.dqb_dpb];
+        for x_s in [2e-4, -2e-4] {
+            for chamber in 0..2 {
+                let mut at = [3e6, 3e6];
+                at[chamber] = floor;
+                let mut below = at;
+                below[chamber] = floor - 2e4;
+                let f_at = port_flows(&p, at, x_s, P_SUPPLY);
+                let f_below = port_flows(&p, below, x_s, P_SUPPLY);
+                assert_eq!((f_below.q_a, f_below.q_b), (f_at.q_a, f_at.q_b), "{x_s} {chamber}");
+                let mut expected = slopes(&f_at);
+                assert!(expected[chamber] != 0.0, "{x_s} {chamber}");
+                expected[chamber] = 0.0;
+                assert_eq!(slopes(&f_below), expected, "{x_s} {chamber}");
+            }
+        }
+    }
+
+    /// An emptying chamber's bulk modulus fades by `u (2 - u)`, `u = (p - p_cav)/band`
+    /// clamped to [0, 1], with the slope `(2 - 2 u)/band` inside the band (against
+    /// differences); 0 at and below the floor, 1 above the band and for a filling chamber.
+    #[test]
+    fn cavitation_fade_is_u_times_two_minus_u() {
+        let p = CylinderParams::default();
+        let (floor, band) = (p.p_cavitation, p.dp_cavitation_band);
+        let emptying = |pressure: f64| cavitation_factor(&p, pressure, -1e-6);
+        for u in [0.0, 0.1, 0.35, 0.5, 0.8, 0.99] {
+            let pressure = floor + u * band;
+            let (factor, slope) = emptying(pressure);
+            assert!((factor - u * (2.0 - u)).abs() <= 1e-12, "u = {u}: {factor}");
+            assert!((slope - (2.0 - 2.0 * u) / band).abs() <= 1e-12 / band, "u = {u}: {slope}");
+            // The slope is the factor's: a forward difference (the tie at the floor is taken
+            // towards increasing pressure), error d/band^2 of the quadratic.
+            let d = 1e-6 * band;
+            let fd = (emptying(pressure + d).0 - factor) / d;
+            assert!((slope - fd).abs() <= 1e-5 / band, "u = {u}: {slope} vs {fd}");
+            // Filling is never slowed.
+            assert_eq!(cavitation_factor(&p, pressure, 1e-6), (1.0, 0.0));
+        }
+        assert_eq!(emptying(floor - 1e3), (0.0, 0.0));
+        assert_eq!(emptying(floor + band), (1.0, 0.0));
+        assert_eq!(emptying(3e6), (1.0, 0.0));
+    }
+
+    /// The end stops push back with `k d + c d'` beyond `+-S/2` (`d` the penetration), with
+    /// slopes `(-k, -c)`, and never pull; exactly at the face there is no contact yet, moving
+    /// in or not: what a motion-port host reads that puts the rod at its end of stroke
+    /// (`x_rod = S/2`, exact in f64) with the rod moving into the stop.
+    #[test]
+    fn end_stop_force_starts_beyond_the_face() {
+        let p = CylinderParams::default();
+        let (k, c, half) = (p.k_endstop, p.c_endstop, 0.5 * p.stroke);
+        for side in [1.0, -1.0] {
+            for v in [0.3, 0.0, -0.3] {
+                assert_eq!(endstop_force(&p, side * half, side * v), (0.0, 0.0, 0.0), "{side} {v}");
+            }
+            // 20 um in, penetrating, still or withdrawing slower than the spring pushes.
+            let d = 2e-5;
+            for rate in [0.1, 0.0, -0.1] {
+                let (force, dx, dv) = endstop_force(&p, side * (half + d), side * rate);
+                let push = k * d + c * rate;
+                assert!((force + side * push).abs() <= 1e-9 * push, "{side} {rate}: {force}");
+                assert_eq!((dx, dv), (-k, -c), "{side} {rate}");
+            }
+            // Withdrawing faster: the damper would pull, the stop lets go.
+            assert_eq!(endstop_force(&p, side * (half + d), -side * 0.5), (0.0, 0.0, 0.0));
+        }
+    }
+}

@@ -171,4 +171,33 @@ mod tests {
             }
         }
     }
+
+    /// The return edges measure their drop from the tank (here at 4 bar): `Q_B = K3 x_s
+    /// sqrt(p_B - p_T)/sqrt(dp_r/2)` for `x_s > 0`, `Q_A = K3 x_s sqrt(p_A - p_T)/sqrt(dp_r/2)`
+    /// for `x_s < 0`, the supply edges `sqrt(p_S - p)`, all drops turbulent; each flow's slope
+    /// in its chamber's pressure is `d sqrt(drop)/dp`, in the spool position the flow over `x_s`.
+    #[test]
+    fn return_edges_drain_to_the_tank_pressure() {
+        let ports = paper_ports();
+        let p_tank = 4e5;
+        let per_xs = ports.k3 / (0.5 * P_RATED).sqrt();
+        let [p_a, p_b] = [3.0e6, 2.5e6];
+        for x_s in [1.5e-4, -1.5e-4] {
+            let q = ports.flows(x_s, [p_a, p_b], P_RATED, p_tank);
+            // The drops and their signs in the chamber's own pressure.
+            let [(drop_a, sign_a), (drop_b, sign_b)] = if x_s > 0.0 {
+                [(P_RATED - p_a, -1.0), (p_b - p_tank, 1.0)]
+            } else {
+                [(p_a - p_tank, 1.0), (P_RATED - p_b, -1.0)]
+            };
+            let (q_a, q_b) = (per_xs * x_s * drop_a.sqrt(), per_xs * x_s * drop_b.sqrt());
+            let close = |got: f64, law: f64| (got - law).abs() <= 1e-12 * law.abs();
+            assert!(close(q.q_a, q_a), "{x_s}: Q_A {} vs {q_a}", q.q_a);
+            assert!(close(q.q_b, q_b), "{x_s}: Q_B {} vs {q_b}", q.q_b);
+            assert!(close(q.dqa_dpa, sign_a * q_a / (2.0 * drop_a)), "{x_s}: {}", q.dqa_dpa);
+            assert!(close(q.dqb_dpb, sign_b * q_b / (2.0 * drop_b)), "{x_s}: {}", q.dqb_dpb);
+            assert!(close(q.dqa_dxs, q_a / x_s), "{x_s}: {}", q.dqa_dxs);
+            assert!(close(q.dqb_dxs, q_b / x_s), "{x_s}: {}", q.dqb_dxs);
+        }
+    }
 }
