@@ -108,13 +108,15 @@ pub(crate) fn secant_cavitation(
     for k in [PA, PB] {
         let (p0, rate) = (y[k], rates[k]);
         let p1 = (p0 + h * rate).max(params.p_cavitation);
-        if rate >= 0.0 || p1 >= top || p1 >= p0 {
+        if rate >= 0.0 || p1 >= top {
             continue;
         }
         // Emptying (the rate is negative), so the fade's branch of the factor applies.
         let (factor, tangent) = cavitation_factor(params, p0, -1.0);
         if factor <= 0.0 {
-            continue; // on the floor: its tangent is the steepest slope there is
+            // On the floor (or below it by rounding, where `p1`, held at the floor, is not
+            // below `p0`): its tangent is the steepest slope there is.
+            continue;
         }
         let secant = (cavitation_factor(params, p1, -1.0).0 - factor) / (p1 - p0);
         if secant > tangent {

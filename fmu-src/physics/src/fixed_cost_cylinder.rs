@@ -808,4 +808,50 @@ mod tests {
         let case = format!("{error:e} of the velocity, {pressures:e} Pa, {stats:?}");
         assert!(pressures < 300.0 && cut_in(2, &stats), "{case}");
     }
+
+    /// The carry onto the stop's surface: over the time the closing speed takes to close
+    /// the gap, every state at its rate, but never past the step's end (the piston then
+    /// still put on the surface: the cut's estimate was early); and no carry at all for a
+    /// part that ended inside the stop or moving away from it (time never runs back).
+    #[test]
+    fn the_carry_onto_the_stop_stays_inside_the_step_and_never_runs_back() {
+        let (params, p_supply) = paper_cylinder();
+        let spool = ([1e-4, 0.0], [1e-4, 0.0]);
+        let step = InternalStep {
+            params: &params,
+            path: cubic_path(spool, STEP),
+            h: STEP,
+            loads: (p_supply, 0.0),
+        };
+        let surface = 0.5 * params.stroke * (1.0 + f64::EPSILON);
+        let start = |gap: f64, v: f64| {
+            let mut y = equilibrium(&params, p_supply, 0.0).to_array();
+            (y[X], y[V]) = (0.5 * params.stroke - gap, v);
+            y
+        };
+        let rates = |y: &Vec4| {
+            let state = CylinderState::from_array(y);
+            cylinder::derivatives(&params, &state, 1e-4, p_supply, 0.0)
+        };
+        // 3 nm at 0.3 m/s: 10 ns, from 10 us into the step.
+        let mut y = start(3e-9, 0.3);
+        let (y0, delay) = (y, (0.5 * params.stroke - y[X]) / y[V]);
+        assert_eq!(step.onto_surface(&mut y, 10e-6, 1.0), 10e-6 + delay);
+        let f = rates(&y0);
+        for k in [PA, PB, V] {
+            assert_eq!(y[k], y0[k] + delay * f[k], "state {k}");
+        }
+        assert_eq!(y[X], surface);
+        // 3 nm at 0.3 m/s from 5 ns before the step's end: 5 ns at most.
+        let mut y = start(3e-9, 0.3);
+        assert_eq!(step.onto_surface(&mut y, STEP - 5e-9, 1.0), STEP);
+        assert_eq!((y[V], y[X]), (y0[V] + (STEP - (STEP - 5e-9)) * f[V], surface));
+        // Inside the stop already, and short of it moving away: the time stays.
+        for (gap, v) in [(-3e-9, 0.3), (3e-9, -0.3)] {
+            let mut y = start(gap, v);
+            let y0 = y;
+            assert_eq!(step.onto_surface(&mut y, 10e-6, 1.0), 10e-6, "gap {gap}, v {v}");
+            assert_eq!([y[PA], y[PB], y[V]], [y0[PA], y0[PB], y0[V]], "gap {gap}, v {v}");
+        }
+    }
 }
