@@ -15,6 +15,7 @@
 
 use super::cylinder::{derivatives, Vec4, V, X};
 use super::params::RodPort;
+use super::root_finding::time_to_close;
 use super::rosenbrock::{rodas3_fixed_step, Stats};
 use super::*;
 
@@ -260,15 +261,6 @@ fn contact_entry(params: &CylinderParams, y0: &Vec4, y1: &Vec4, h: f64, a0: f64)
         (gap0 > 0.0 && reached < h)
             .then_some(Cut::Contact { tau: reached * (1.0 - CONTACT_MARGIN), side })
     })
-}
-
-/// When a gap of `gap` closes at the closing speed `v` and acceleration `a` held: the
-/// first positive root of `a t^2 / 2 + v t = gap` (in the form that does not cancel);
-/// `None` where it does not close.
-fn time_to_close(gap: f64, v: f64, a: f64) -> Option<f64> {
-    let discriminant = v * v + 2.0 * a * gap;
-    let t = 2.0 * gap / (v + discriminant.sqrt());
-    (discriminant >= 0.0 && t > 0.0 && t.is_finite()).then_some(t)
 }
 
 /// Where a step from `y0`, in contact with an end stop, to `y1` saw the contact force
@@ -633,25 +625,6 @@ mod tests {
         let off = error * reference[V].abs();
         let case = format!("{off:e} m/s, {stats:?}");
         assert!(off < 3e-5 && (stats.rejected, stats.accepted) == (0, 2), "{case}");
-    }
-
-    /// The time a gap closes at a held closing speed and acceleration: at a steady speed
-    /// gap / v; accelerating, sooner, decelerating, later; from rest or moving away, only
-    /// when accelerating towards it (the positive root); never where it stops short.
-    #[test]
-    fn a_gap_closes_at_the_first_root_of_its_quadratic() {
-        let close = |gap: f64, v: f64, a: f64| time_to_close(gap, v, a);
-        assert_eq!(close(3e-6, 0.3, 0.0), Some(1e-5));
-        for (v, a) in [(0.3, 2e3), (0.3, -2e3), (0.0, 2e3), (-0.05, 2e3)] {
-            let t = close(3e-6, v, a).unwrap();
-            let gap_left = 3e-6 - v * t - 0.5 * a * t * t;
-            assert!(gap_left.abs() < 1e-18 && t > 0.0, "v {v}, a {a}: {t:e} s, {gap_left:e}");
-        }
-        assert!(close(3e-6, 0.3, 2e3).unwrap() < 1e-5 && close(3e-6, 0.3, -2e3).unwrap() > 1e-5);
-        // Stops 2.25 um in: never closes; nor moving away and slowing down.
-        assert_eq!(close(3e-6, 0.3, -2e4), None);
-        assert_eq!(close(3e-6, -0.3, -2e3), None);
-        assert_eq!(close(3e-6, 0.0, 0.0), None);
     }
 
     /// Where a step that enters the creep band is cut: at the earlier of the band edge's

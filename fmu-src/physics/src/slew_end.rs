@@ -19,6 +19,7 @@
 use super::augmented_state::{dot, Mat, Vector, EVOLVING, U};
 use super::driver::{u_lin_row, Mode, MODES};
 use super::mode_systems::{ModeSystem, BACK_TERMS, NEGLECTED_TERM, RECIPROCALS};
+use super::root_finding::time_to_close;
 use super::Coefficients;
 
 /// For each slew (up, down) and each mode after it: `[d, d A_s]` where the two modes
@@ -97,12 +98,14 @@ pub(crate) fn pulled_back(
 pub(crate) fn end_time(c: &Coefficients, [d, d_rate]: &[Vector; 2], z0: &Vector) -> Option<f64> {
     let gap = dot(&u_lin_row(c), z0) - z0[U];
     let (w0, w1) = (dot(d, z0), dot(d_rate, z0));
-    let discriminant = w0 * w0 + 2.0 * w1 * gap;
-    if gap * w0 <= 0.0 || discriminant < 0.0 {
+    if gap * w0 <= 0.0 {
+        // The gap opens (or holds) at the slew's start: no end here, even where the law's
+        // slowing would turn it back later.
         return None;
     }
-    let tau = 2.0 * gap / (w0 + discriminant.sqrt().copysign(w0));
-    tau.is_finite().then_some(tau)
+    // The same root with every sign turned where the gap is negative (exact: bit for bit).
+    let side = gap.signum();
+    time_to_close(side * gap, side * w0, side * w1)
 }
 
 #[cfg(test)]
