@@ -629,10 +629,10 @@ variable_table! {
     // The integrator (appended; docs/solvers.md): exact for design studies and the paper's
     // figures, fixed_cost for real-time rigs and long robot runs.
     SOLVER_METHOD => param[solver_method] coded: enumeration("solver.method", &SOLVER_METHOD_TYPE, "Integrator: exact (results independent of the communication step) or fixed_cost (work fixed by the step size, for real-time rigs)"),
-    // fixed_cost's internal step (appended). 25 us divides the default 50 us loop period and
-    // the usual communication steps (1e-4, 5e-5 s), so loop samples fall on internal step
-    // boundaries and results do not depend on the communication step; the accuracy goes
-    // with its square (ROS2), the cost with its inverse (docs/solvers.md).
+    // fixed_cost's internal step (appended). The default 1e-4 s is one internal step per usual
+    // communication step (the real-time budget); within the digital loops' 50 us periods it is
+    // one per period. The accuracy goes with its square (the trapezoidal step), the cost with
+    // its inverse: docs/solvers.md gives the curve to pick a point on.
     SOLVER_H_INTERNAL => param[solver_h_internal] real: param("solver.h_internal", Some("s"), "Longest internal step of solver.method = fixed_cost: each span between time events is cut into equal steps no longer than this; not read by exact")
         .range(Some(1.0e-6), Some(1.0e-3)),
 }

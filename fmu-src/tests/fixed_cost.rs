@@ -86,11 +86,11 @@ fn compare_with(
 /// boundaries: on every linear driver within 1e-9 of their range on the sines (whose
 /// command changes every step: the op-amp's slews from a step's start end at an exact
 /// root), within 1e-5 on the squares (the slews of their steps reach the rails, those mode
-/// changes placed by interpolation). The piston within 1e-5, the pressures within 2.5e-3 on
-/// the 20 Hz waves (their squares' pressure spikes) and 2.5e-4 on the 2 Hz waves, which
-/// drive the piston into its end stops (each step cut where the piston reaches a stop and
-/// where it leaves it, the bounce in half steps; a step across a contact, halved, was
-/// 1.5e-2 off in the pressures).
+/// changes placed by interpolation). At the default internal step (50 us) the piston is
+/// within 1e-3 of its range and the pressures within 1e-2 on the 2 Hz waves (which drive the
+/// piston into its end stops) and the 20 Hz sines; the 20 Hz squares' pressure spikes, a
+/// chamber emptied onto the cavitation floor at every reversal, within 2.5e-2
+/// (docs/solvers.md: 25 us brings them within 1e-2).
 #[test]
 fn fixed_cost_follows_exact_on_sines_and_squares() {
     for kind in ["ideal_current", "voltage", "opamp_pi", "industrial"] {
@@ -100,20 +100,20 @@ fn fixed_cost_follows_exact_on_sines_and_squares() {
             let runs: [(&str, &Input<'_>); 2] = [("sine", &|t| (vr::I_REF, s(t))), ("square", &sq)];
             for (shape, input) in runs {
                 let e = compare(&[driver(kind)], 0.2, 1e-4, input);
-                println!("{kind} {shape} {hz} Hz: {}", show(&e));
                 let case = format!("{kind} {shape} {hz} Hz: {}", show(&e));
+                println!("{case}");
                 let driver_bound = if shape == "sine" { 1e-9 } else { 1e-5 };
                 assert!(e[..3].iter().all(|&x| x < driver_bound), "{case}");
-                assert!(e[5] < 1e-5, "{case}");
-                let pressures = if hz > 10.0 { 2.5e-3 } else { 2.5e-4 };
+                assert!(e[5] < 1e-3, "{case}");
+                let pressures = if hz > 10.0 && shape == "square" { 2.5e-2 } else { 1e-2 };
                 assert!(e[3] < pressures && e[4] < pressures, "{case}");
             }
         }
     }
 }
 
-/// The loops: every output within 2e-4 of its range (the position loop's piston within
-/// 1e-6); the H-bridge's PWM spans are exact for driver and coil, the piston within 1e-5.
+/// The loops: every output within 5e-3 of its range (the position loop's piston within
+/// 1e-5); the H-bridge's PWM spans are exact for driver and coil, the piston within 1e-4.
 #[test]
 fn fixed_cost_follows_exact_in_the_loops() {
     let s = sine(5.0, 2e-4);
@@ -124,16 +124,16 @@ fn fixed_cost_follows_exact_in_the_loops() {
     let position =
         compare(&[driver("opamp_pi"), control_mode("position")], 1.0, 1e-4, &|t| (vr::X_REF, s(t)));
     println!("position loop: {}", show(&position));
-    assert!(position[5] < 1e-6, "{}", show(&position));
+    assert!(position[5] < 1e-5, "{}", show(&position));
     // The flow loop samples the valve alone: driver, coil and valve exact to rounding.
     assert!(flow[..3].iter().all(|&x| x < 1e-9), "{}", show(&flow));
     for e in [flow, position] {
-        assert!(e.iter().all(|&x| x < 2e-4), "{}", show(&e));
+        assert!(e.iter().all(|&x| x < 5e-3), "{}", show(&e));
     }
     let s = sine(5.0, 5e-3);
     let e = compare(&[driver("hbridge_pid")], 0.2, 1e-4, &|t| (vr::I_REF, s(t)));
     println!("hbridge: {}", show(&e));
-    assert!(e[..3].iter().all(|&x| x < 1e-9) && e[5] < 1e-5, "{}", show(&e));
+    assert!(e[..3].iter().all(|&x| x < 1e-9) && e[5] < 1e-4, "{}", show(&e));
 }
 
 /// The outputs' largest error over their range, fixed_cost with internal steps of at most
@@ -146,12 +146,8 @@ fn error_at_internal_step(kind: &str, h_internal: f64) -> [f64; 6] {
 }
 
 /// Shrinking `solver.h_internal` 16-fold, from 25 to 1.5625 us, makes the pressures and the
-/// position at least 10 times more accurate together (their worst: 16 times) and none of
-/// them less accurate, against a tight exact run. Not the 4096 of the cylinder step's own
-/// order 3 (`fixed_cost_cylinder` tests), and not step by step: between 12.5 and 3 us the
-/// errors stay near 1e-5 of the range, from what a fixed step meets whose place does not
-/// scale with the step (the driver's rail changes placed by interpolation, the friction's
-/// band crossed at every reversal of the piston in a part of its own length).
+/// position more than 100 times more accurate together (the trapezoidal step's second
+/// order promises 256) and each of them more accurate, against a tight exact run.
 #[test]
 fn fixed_cost_converges_as_the_internal_step_shrinks() {
     let steps = [2.5e-5, 1.25e-5, 6.25e-6, 3.125e-6, 1.5625e-6];
@@ -165,7 +161,7 @@ fn fixed_cost_converges_as_the_internal_step_shrinks() {
     }
     let gain = worst(&errors[0]) / worst(&errors[4]);
     println!("the worst of them {gain:.1} times more accurate at 1.5625 us");
-    assert!(gain > 10.0, "{gain}");
+    assert!(gain > 100.0, "{gain}");
 }
 
 /// The same run with the communication step 1e-4 and 5e-5 (both multiples of the internal

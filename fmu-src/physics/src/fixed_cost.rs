@@ -1,23 +1,25 @@
 //! The fixed-cost integrator behind the seam ([`super::integrator`]): work fixed by the
 //! segment's length, for real-time rigs. Each segment is cut into `n` equal internal steps,
-//! `n = ceil(span / h_internal)` (`solver.h_internal`, 25 us by default): a loop period
-//! of 50 us gives two steps of 25 us, and where the internal step divides the
-//! communication step the cuts do not depend on it. Per internal step:
+//! `n = ceil(span / h_internal)` (`solver.h_internal`, 1e-4 s by default: one internal
+//! step per 1e-4 s communication step, one per 50 us period of the digital loops), and
+//! where the internal step divides the communication step the cuts do not depend on it.
+//! Per internal step:
 //! * driver, coil and valve go by the mode's propagator over the step (cached per mode
 //!   and span; the whole steps' built when the first step is prepared); a guard that
 //!   crossed inside the step is placed by one linear interpolation, the mode chosen again
 //!   there ([`Actuator::settle`]) and the rest of the step taken in the new one: no event
 //!   search; the parts of a step either side of such a change go by the mode's ladder of
 //!   prebuilt exponentials ([`super::dyadic_ladder`]), so no doStep builds one;
-//! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one step of
-//!   [`super::fixed_cost_cylinder`] (Rodas3; two half steps where one crosses a kink), the
-//!   spool on the cubic through its positions and velocities at the step's ends.
+//! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one linearly implicit step of
+//!   [`super::lean_cylinder`] (cut where the piston meets a stop or a chamber enters the
+//!   cavitation band; in halves in a stop's contact), the spool on the straight line
+//!   between its positions at the step's ends.
 
 use super::actuator::{current_system, system_key, Actuator};
 use super::augmented_state::{RAIL, U};
 use super::dyadic_ladder::DyadicLadders;
-use super::fixed_cost_cylinder as cylinder_step;
 use super::integrator::{Integrator, Segment};
+use super::lean_cylinder;
 use super::slew_end;
 use super::*;
 
@@ -65,11 +67,11 @@ impl Integrator for FixedCostIntegrator {
         let h = segment.span / n as f64;
         // An internal step's end is the next one's start (the cylinder's step leaves the
         // driver and valve as they are).
-        let mut start = spool_motion(actuator);
+        let mut start = spool_position(actuator);
         for _ in 0..n {
             self.driver_and_valve(actuator, h, events)?;
-            let end = spool_motion(actuator);
-            cylinder_step::step(actuator, (start, end), h, inputs)?;
+            let end = spool_position(actuator);
+            lean_cylinder::step(actuator, [start, end], h, inputs)?;
             start = end;
         }
         Ok(())
@@ -258,10 +260,9 @@ fn inside_guards(actuator: &Actuator, z: &Vector) -> bool {
     (0..sys.n_guards).all(|g| sys.guard_value(g, z) < 0.0)
 }
 
-/// The spool's position and velocity in the actuator's current mode.
-fn spool_motion(actuator: &Actuator) -> [f64; 2] {
+/// The spool's position in the actuator's current mode (held at a stop where it has one).
+fn spool_position(actuator: &Actuator) -> f64 {
     let c = &actuator.params;
     let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
-    let [x, v, _] = sys.spool_motion(&actuator.z);
-    [x, v]
+    sys.spool_motion(&actuator.z)[0]
 }

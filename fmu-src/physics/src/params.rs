@@ -66,9 +66,9 @@ pub enum SolverMethod {
     /// happens in it.
     Exact,
     /// Work fixed by the step size for real-time rigs: driver, coil and valve by
-    /// precomputed propagators over internal steps of at most `solver_h_internal`, mode changes at
-    /// their boundaries, the cylinder by a linearly implicit L-stable Rosenbrock method
-    /// (ROS2) without error control (docs/solvers.md).
+    /// precomputed propagators over internal steps of at most `solver_h_internal`, a mode
+    /// change placed by one interpolation, the cylinder by one linearly implicit trapezoidal
+    /// step per internal step, cut at end-stop contact and cavitation (docs/solvers.md).
     FixedCost,
 }
 
@@ -316,7 +316,7 @@ impl Params {
         },
         solver_rtol: 1.0e-7,
         solver_method: SolverMethod::Exact,
-        solver_h_internal: 25e-6,
+        solver_h_internal: 5e-5,
     };
 }
 

@@ -26,9 +26,9 @@
 
 use super::cylinder::{
     derivatives, next_cavitation_switch, next_contact_switch, CylinderParams, CylinderState, Mat4,
-    Vec4, N_STATES, PA, PB, V,
+    Vec4, N_STATES, PA, PB,
 };
-use super::cylinder_jacobian::{linearise, secant_cavitation, secant_friction};
+use super::cylinder_jacobian::linearise;
 use super::lu4::Lu4;
 
 /// A Rosenbrock method in the transformed form of Hairer & Wanner and of KPP (Sandu et al.):
@@ -110,15 +110,6 @@ const MAX_STEPS_PER_CALL: u32 = 100_000;
 
 /// Error weights: the error of state i is measured against `rtol * max(|y_i|, STATE_SCALE[i])`.
 pub(crate) const STATE_SCALE: [f64; N_STATES] = [1.0e6, 1.0e6, 1.0e-2, 1.0e-1];
-
-/// [`rosenbrock_step`]'s error measure of the pressures: relative, as above (the adaptive
-/// steps of the exact method)...
-const RELATIVE_PRESSURES: bool = false;
-/// ... or against `rtol * STATE_SCALE` alone (the fixed-cost step's halving test). Its
-/// outputs are judged against their ranges, not their sizes: near supply a relative measure
-/// let a step 1.3 kPa off through, where the orifice's square root is steep (the port's
-/// drop near zero) and turned it into 1.3e-3 of the flow's range on the 20 Hz squares.
-const ABSOLUTE_PRESSURES: bool = true;
 
 /// Numbers in [`RosenbrockMemory::to_array`].
 pub(crate) const MEMORY_VALUES: usize = 6;
@@ -321,7 +312,7 @@ pub(crate) fn advance_with_rate(
                 break;
             }
         }
-        let (y_new, err) = rosenbrock_step::<6, RELATIVE_PRESSURES, _>(
+        let (y_new, err) = rosenbrock_step::<6, _>(
             &RODAS4,
             &model,
             here,
@@ -489,7 +480,7 @@ fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
     memory: &mut RosenbrockMemory,
     stats: &mut Stats,
 ) -> Result<Option<Vec4>, String> {
-    let (mut y3, err3) = rosenbrock_step::<4, RELATIVE_PRESSURES, _>(
+    let (mut y3, err3) = rosenbrock_step::<4, _>(
         &RODAS3,
         model,
         here,
@@ -508,32 +499,6 @@ fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
     memory.rodas3_backoff = (2 * memory.rodas3_backoff).clamp(1, MAX_RODAS3_BACKOFF);
     memory.rodas3_skip = memory.rodas3_backoff;
     Ok(None)
-}
-
-/// One Rodas3 step of `h` from `y` without step control (the fixed-cost integrator's), the
-/// spool on `spool` (position and rate at a time into the step), lifted to the cavitation
-/// floor; with its embedded error estimate scaled by `rtol` ([`ABSOLUTE_PRESSURES`]), infinite if
-/// a stage was not finite; and the rod's acceleration at the step's start (the step's own
-/// first rate, for the fixed-cost cuts' estimates). Near zero velocity the friction's slope
-/// in its Jacobian is the secant over the step ([`secant_friction`]), and so is the
-/// cavitation fade's for a chamber emptied into the band ([`secant_cavitation`]).
-pub(crate) fn rodas3_fixed_step<F: Fn(f64) -> (f64, f64)>(
-    params: &CylinderParams,
-    (y, h): (&Vec4, f64),
-    spool: &F,
-    (p_supply, load): (f64, f64),
-    rtol: f64,
-    stats: &mut Stats,
-) -> Result<(Vec4, f64, f64), String> {
-    let model = Rhs { params, p_supply, load, spool };
-    let mut here = model.linearise(0.0, y, stats);
-    secant_friction(params, y, here.f0[V], h, &mut here.jac);
-    secant_cavitation(params, y, &here.f0, h, &mut here.jac);
-    let step = (0.0, y, h);
-    let (mut y_new, err) =
-        rosenbrock_step::<4, ABSOLUTE_PRESSURES, _>(&RODAS3, &model, &here, step, rtol, stats)?;
-    clamp_to_floor(params, &mut y_new, stats);
-    Ok((y_new, err, here.f0[V]))
 }
 
 /// x^(1/4) by two square roots (exact to rounding, a fraction of `powf`'s cost).
@@ -596,7 +561,7 @@ struct Linearisation {
 /// coefficients are constants there: the loops unroll and the terms with a zero coefficient
 /// fold away. Every remaining operation is the one of the method's formulas, in the same order.
 #[inline(always)]
-fn rosenbrock_step<const S: usize, const ABSOLUTE_P: bool, F: Fn(f64) -> (f64, f64)>(
+fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
     method: &Rosenbrock<S>,
     model: &Rhs<'_, F>,
     lin: &Linearisation,
@@ -643,12 +608,7 @@ fn rosenbrock_step<const S: usize, const ABSOLUTE_P: bool, F: Fn(f64) -> (f64, f
                 error += e * k[n];
             }
         }
-        let size = if ABSOLUTE_P && matches!(n, PA | PB) {
-            STATE_SCALE[n]
-        } else {
-            y[n].abs().max(y_new[n].abs()).max(STATE_SCALE[n])
-        };
-        let scale = rtol * size;
+        let scale = rtol * y[n].abs().max(y_new[n].abs()).max(STATE_SCALE[n]);
         sum += (error / scale).powi(2);
     }
     let err = (sum / N_STATES as f64).sqrt();
