@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # Instructions per doStep, by part of the step, of one benchmark workload:
 #
-#     scripts/profile-step.sh WORKLOAD exact|fixed_cost [STEPS]      # e.g. gait_position fixed_cost
+#     scripts/profile-step.sh WORKLOAD exact|fixed_cost [STEPS] [--c-api]   # e.g. gait_position fixed_cost
 #
 # Runs tests/src/bin/step_profile.rs (the workload through the model's Rust API, STEPS
 # doSteps of 1e-4 s, default 5000: the bench's --t-end 0.5) under callgrind, built with debug
 # info into target/profile so that the normal release build is left as it is. Instruction
 # counts, unlike the bench's times, do not move with what else the machine does.
+#
+# --c-api: the workload through the FMI 2 C API instead, as the bench's instr/step counts it
+# (SetReal of the inputs, DoStep, GetReal of i_coil, x_piston, p_A, Q_valve per instance and
+# step, inside capi_steps::communication_step); "rest" then holds the FMI layer as well.
 #
 # callgrind records every call chain (--separate-callers) and callgrind_annotate prints each
 # chain's own instructions; only chains through step_profile::one_do_step count, so the start-up
@@ -21,21 +25,28 @@
 # the physics crate costs a line "matched nothing", not a failure; a function the compiler
 # inlined is counted in its caller.
 set -euo pipefail
-[ $# -ge 2 ] || { echo "usage: $0 WORKLOAD exact|fixed_cost [STEPS]" >&2; exit 2; }
+[ $# -ge 2 ] || { echo "usage: $0 WORKLOAD exact|fixed_cost [STEPS] [--c-api]" >&2; exit 2; }
+steps=5000 c_api= marker=step_profile::one_do_step
+for a in "${@:3}"; do
+    case "$a" in
+        --c-api) c_api=--c-api marker=capi_steps::communication_step ;;
+        *) steps=$a ;;
+    esac
+done
 cd "$(dirname "$0")/.."
 CARGO_PROFILE_RELEASE_DEBUG=true CARGO_TARGET_DIR=target/profile \
     cargo build --quiet --release -p ehsv-tests --bin step_profile
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 valgrind --tool=callgrind --separate-callers=100 --callgrind-out-file="$out/cg" \
-    target/profile/release/step_profile "$1" "$2" "${3:-5000}" >"$out/run" 2>"$out/valgrind" \
+    target/profile/release/step_profile "$1" "$2" "$steps" $c_api >"$out/run" 2>"$out/valgrind" \
     || { cat "$out/valgrind" >&2; exit 1; }
 callgrind_annotate --inclusive=no --threshold=100 --auto=no "$out/cg" >"$out/annotated" 2>/dev/null
 python=python3; [ -x .venv/bin/python ] && python=.venv/bin/python
-"$python" - "$out/run" "$out/annotated" <<'PY'
+"$python" - "$out/run" "$out/annotated" "$marker" <<'PY'
 import collections, re, sys
 
-MARKER = "step_profile::one_do_step"
+MARKER = sys.argv[3]  # step_profile::one_do_step, or capi_steps::communication_step
 PARTS = {  # name: substrings of a function's name; an instruction's own part is the innermost
     "integrator's evolve": ["::evolve"],
     "driver/coil/valve propagation": ["::propagate", "taylor_propagate", "PropagatorCache::get"],

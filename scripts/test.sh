@@ -6,7 +6,8 @@
 #   4. pytest tests/python                      (both archives through fmpy + fmutool)
 #   5. benchmark smoke run through the C API    (bench --quick)
 #   6. quality gates: cargo fmt --check, clippy -D warnings, no function over 80 lines
-#      outside tests (clippy::too_many_lines, clippy.toml), cargo doc -D warnings, ruff
+#      outside tests (clippy::too_many_lines, clippy.toml), cargo doc -D warnings, ruff,
+#      no circle of imports among the physics crate's files (scripts/import-cycles.py)
 # Every stage runs even if an earlier one failed (pytest then says what is missing);
 # the exit status is non-zero if any stage failed.
 set -uo pipefail
@@ -45,6 +46,7 @@ stage too-many-lines cargo clippy --workspace --lib --bins --release -- -D warni
 stage doc env RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace
 stage ruff-check .venv/bin/ruff check cosim-examples tests/python
 stage ruff-format .venv/bin/ruff format --check cosim-examples tests/python
+stage import-cycles python3 scripts/import-cycles.py
 
 # ---- robustness and conformance (see docs/testing.md "Robustness and conformance"); the
 # fuzz and robustness tests already ran in cargo-test, the importer/state tests in pytest.

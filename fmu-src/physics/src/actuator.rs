@@ -3,8 +3,41 @@
 //! digital loops, the cylinder), with the rules that keep the state consistent with its
 //! mode ([`Actuator::settle`]) and take new commands into it.
 
-use super::cylinder_terms::net_force;
-use super::*;
+use crate::components::coefficients::Coefficients;
+use crate::components::coil;
+use crate::components::cylinder;
+use crate::components::cylinder::check_inside;
+use crate::components::cylinder::CylinderState;
+use crate::components::cylinder_terms::net_force;
+use crate::components::driver;
+use crate::components::driver::Mode;
+use crate::components::driver::MODES;
+use crate::components::hbridge::HBridgeState;
+use crate::components::outer_loop::OuterLoop;
+use crate::components::rod_port;
+use crate::components::valve;
+use crate::events::StepEvents;
+use crate::events::Work;
+use crate::held_inputs::HeldInputs;
+use crate::integrators::exact::driven_cylinder::DrivenCylinder;
+use crate::numerics::augmented_state::Mat;
+use crate::numerics::augmented_state::Vector;
+use crate::numerics::augmented_state::I;
+use crate::numerics::augmented_state::I_CMD;
+use crate::numerics::augmented_state::ONE;
+use crate::numerics::augmented_state::RAIL;
+use crate::numerics::augmented_state::U;
+use crate::numerics::augmented_state::UI;
+use crate::numerics::augmented_state::XF;
+use crate::numerics::augmented_state::XS;
+use crate::numerics::mode_systems::ModeSystem;
+use crate::numerics::rosenbrock::RosenbrockMemory;
+use crate::params::ControlMode;
+use crate::params::DriverKind;
+use crate::params::Inputs;
+use crate::params::Outputs;
+use crate::params::Params;
+use crate::params::RodPort;
 
 /// The model and its state; the integrator that advances it is [`Physics`]'s other half.
 #[derive(Clone)]
@@ -26,6 +59,22 @@ pub(crate) struct Actuator {
     pub(crate) p_supply: f64,
     /// The work counted so far (the integrator's own counters aside: [`Physics::work`]).
     pub(crate) work: Work,
+}
+
+/// `z' = A z` for one driver mode, the valve free of its stops: coil, valve, then driver
+/// rows (the linear PI mode's output row reads the coil row).
+pub(crate) fn dynamics(c: &Coefficients, mode: Mode) -> Mat {
+    let mut a = Mat::zeros();
+    coil::coil_rows(c, mode, &mut a);
+    valve::valve_rows(c, &mut a);
+    driver::driver_rows(c, mode, &mut a);
+    a
+}
+
+/// The system of a driver mode with its exit guards.
+pub(crate) fn mode_system(c: &Coefficients, mode: Mode) -> ModeSystem {
+    let a = dynamics(c, mode);
+    ModeSystem::new(a, &driver::mode_guards(c, mode, &a))
 }
 
 /// The propagator caches' name for a (mode, stops) pair: each pair has a system of its own.
@@ -214,5 +263,53 @@ pub(crate) fn current_system<'a>(
         active
     } else {
         &systems[mode.index()]
+    }
+}
+
+// The rod's port as the actuator meets it (its equations are `components::rod_port`'s).
+impl Actuator {
+    /// Puts the cylinder at rest in equilibrium for the held inputs; with the motion port
+    /// the rod where the host says.
+    pub(crate) fn start_cylinder(&mut self, held: &HeldInputs, inputs: &Inputs) {
+        let c = &self.params.cylinder;
+        let force = if c.port == RodPort::Force { held.load } else { 0.0 };
+        self.cylinder.state = cylinder::equilibrium(c, held.p_supply, force);
+        if c.port == RodPort::Motion {
+            (self.cylinder.state.x, self.cylinder.state.v) = (inputs.x_rod, inputs.v_rod);
+        }
+    }
+
+    /// With the motion port, moves the rod to the host's position and velocity at the
+    /// start of a step (refused, nothing changed, if that puts the piston through the end
+    /// of the cylinder); returns the force on the rod there.
+    pub(crate) fn take_rod_motion(&mut self, inputs: &Inputs) -> Result<f64, String> {
+        if self.params.cylinder.port == RodPort::Motion {
+            let moved = CylinderState { x: inputs.x_rod, v: inputs.v_rod, ..self.cylinder.state };
+            check_inside(&self.params.cylinder, &moved)?;
+            self.cylinder.state = moved;
+        }
+        Ok(self.rod_force())
+    }
+
+    /// The force of the actuator on the rod at the current state (N, + = extension).
+    pub(crate) fn rod_force(&self) -> f64 {
+        net_force(&self.params.cylinder, &self.cylinder.state, 0.0)[0]
+    }
+
+    /// See [`Physics::outputs_along`].
+    pub(crate) fn outputs_along(&self, inputs: &Inputs, span: f64) -> Outputs {
+        let system = current_system(&self.params, &self.active, &self.systems, self.mode);
+        let dz = system.a * self.z;
+        let held = HeldInputs::new(&self.params, inputs);
+        let state = &self.cylinder.state;
+        let c = &self.params.cylinder;
+        let dy = cylinder::derivatives(c, state, self.z[XS], held.p_supply, held.load);
+        let z = self.z + dz * span;
+        let mut y = state.to_array();
+        for (y, d) in y.iter_mut().zip(dy) {
+            *y += d * span;
+        }
+        let moved = CylinderState::from_array(&y);
+        self.outputs_at(&z, &moved)
     }
 }

@@ -1,9 +1,21 @@
 //! Advancing [`Physics`] over one communication step: the time events of the digital
 //! loops cut the step; between them the chosen integrator evolves the actuator's continuous
-//! part ([`super::integrator`]).
+//! part ([`crate::integrators::seam`]).
 
-use super::integrator::{Integrator, Segment};
-use super::*;
+use crate::components::cylinder;
+use crate::components::valve;
+use crate::events::StepEvents;
+use crate::held_inputs::HeldInputs;
+use crate::integrators::seam::{Integrator, Segment};
+use crate::numerics::augmented_state::I;
+use crate::numerics::augmented_state::I_CMD;
+use crate::numerics::augmented_state::RAIL;
+use crate::numerics::augmented_state::U;
+use crate::numerics::augmented_state::XS;
+use crate::params::ControlMode;
+use crate::params::Inputs;
+use crate::physics::Physics;
+use crate::physics::RestKey;
 
 /// Bounds the work of one step with the PWM driver (each instant ends a segment): a step
 /// holding more instants is refused as far too long for the PWM.

@@ -11,251 +11,42 @@
 //! the cylinder is nonlinear and stiff, integrated by a Rosenbrock method (`rosenbrock`)
 //! along the exact spool path. No FFI, no `unsafe`.
 
+//!
+//! The folders show the parts: `components` (the equations of driver, H-bridge, coil,
+//! valve, metering ports, cylinder and its terms, outer loops, rod port), `numerics` (what
+//! both integrators use: the augmented state and its exponentials, the mode systems, the slew
+//! ends, the Rosenbrock steps, LU and root finding), `integrators` (the seam, and each
+//! integrator in a folder of its own), `state` (byte framing and the state as bytes). No
+//! file imports from a file that imports it (`scripts/import-cycles.py`).
+
 mod actuator;
 mod advance;
-mod augmented_exp;
-mod augmented_state;
-pub mod bytes;
-mod coil;
-mod cylinder;
-mod cylinder_jacobian;
-mod cylinder_terms;
-mod driven_cylinder;
-mod driver;
-mod dyadic_ladder;
-mod exact_integrator;
-mod fixed_cost;
-mod hbridge;
-mod integrator;
-mod lean_cylinder;
-mod lu4;
-mod metering_ports;
-mod mode_systems;
-mod outer_loop;
+mod components;
+mod events;
+mod held_inputs;
+mod integrators;
+mod numerics;
 mod params;
+mod physics;
 mod retune;
 #[cfg(feature = "whole-model")]
 pub mod rhs;
-mod rod_port;
-mod root_finding;
-mod rosenbrock;
-mod slew_end;
-mod state_bytes;
-mod valve;
+mod state;
 
+pub use components::rod_port::RATE_PROBE;
+pub use events::{StepEvents, Work};
 pub use params::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
     OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, RodPort, SolverMethod, ValveParams,
     VALVE_RATED_CURRENT,
 };
-pub use rod_port::RATE_PROBE;
+pub use physics::Physics;
+pub use state::bytes;
 
 use actuator::Actuator;
-use augmented_state::{Mat, Vector, I, I_CMD, ONE, RAIL, U, UI, XF, XS};
-use cylinder::{CylinderParams, CylinderState};
-use driven_cylinder::DrivenCylinder;
-use driver::{Mode, MODES};
-use hbridge::HBridgeState;
-use integrator::{ChosenIntegrator, Integrator};
-use mode_systems::{locate_event, may_cross, GuardsAt, ModeSystem, Propagator, PropagatorCache};
-use outer_loop::{LoopParams, OuterLoop};
-use rosenbrock::RosenbrockMemory;
-use valve::SpoolPath;
-
-/// The parameters in the form the equations use (derived from [`Params`] once).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Coefficients {
-    pub driver: DriverKind,
-    /// Gains, output drop and slew rate of the continuous PI loop of the chosen driver.
-    pub kp: f64,
-    pub ki: f64,
-    pub v_drop: f64,
-    pub slew_rate: f64,
-    pub hbridge: HBridgeParams,
-    pub loops: LoopParams,
-    pub cylinder: CylinderParams,
-    pub inductance: f64,
-    pub r_total: f64,
-    pub k_backemf: f64,
-    pub valve: ValveParams,
-    /// Natural angular frequency of the first stage, 2 pi f_n.
-    pub wn: f64,
-}
-
-impl Coefficients {
-    /// Derives the coefficients and checks the rules between parameters.
-    pub(crate) fn new(p: &Params) -> Result<Coefficients, String> {
-        let pi = if p.driver == DriverKind::Industrial { p.industrial } else { p.opamp };
-        let v = &p.valve;
-        Ok(Coefficients {
-            driver: p.driver,
-            kp: pi.kp,
-            ki: pi.ki,
-            // The op-amp's output stage drop; the other drivers reach the supply.
-            v_drop: if p.driver == DriverKind::OpampPi { p.opamp_v_drop } else { 0.0 },
-            slew_rate: pi.slew_rate,
-            hbridge: p.hbridge,
-            loops: LoopParams::new(&p.outer_loop, p.control_mode, v.k3 * v.k1 / v.kw),
-            cylinder: CylinderParams::new(&p.cylinder, v)?,
-            inductance: p.coil.inductance,
-            r_total: p.coil.resistance + p.coil.r_sense,
-            k_backemf: p.coil.k_backemf,
-            valve: *v,
-            wn: 2.0 * std::f64::consts::PI * v.f_n,
-        })
-    }
-
-    /// What the mode systems are built from, as bits: the driver's PI loop (gains, slew
-    /// rate), the coil, and the valve (first stage, spool, stops). Equal keys give the same
-    /// systems bit for bit.
-    pub(crate) fn mode_system_key(&self) -> [u64; 19] {
-        let v = &self.valve;
-        [
-            self.kp,
-            self.ki,
-            self.slew_rate,
-            self.inductance,
-            self.r_total,
-            self.k_backemf,
-            self.wn,
-            v.k1,
-            v.kf,
-            v.kw,
-            v.k2,
-            v.k3,
-            v.spool_area,
-            v.zeta,
-            v.f_n,
-            v.x_flapper_max,
-            v.x_spool_max,
-            v.dp_rated,
-            v.dp_laminar,
-        ]
-        .map(f64::to_bits)
-    }
-}
-
-/// `z' = A z` for one driver mode, the valve free of its stops: coil, valve, then driver
-/// rows (the linear PI mode's output row reads the coil row).
-fn dynamics(c: &Coefficients, mode: Mode) -> Mat {
-    let mut a = Mat::zeros();
-    coil::coil_rows(c, mode, &mut a);
-    valve::valve_rows(c, &mut a);
-    driver::driver_rows(c, mode, &mut a);
-    a
-}
-
-/// The system of a driver mode with its exit guards.
-fn mode_system(c: &Coefficients, mode: Mode) -> ModeSystem {
-    let a = dynamics(c, mode);
-    ModeSystem::new(a, &driver::mode_guards(c, mode, &a))
-}
-
-/// Mode changes inside one step, for event logging.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct StepEvents {
-    pub rail_entered: u32,
-    pub rail_left: u32,
-    /// Relief valves of chambers `[A, B]` open at the end of the step that were shut at its
-    /// start (seen at communication points).
-    pub relief_opened: [bool; 2],
-}
-
-/// Work the integrators have done since the instance was built or restored (cumulative
-/// counters for benchmarks; not part of the state).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Work {
-    /// Calls of the cylinder's Rosenbrock integrator (one per piece of spool path).
-    pub cylinder_calls: u64,
-    /// Its internal steps: accepted (Rodas3 ones included) and rejected.
-    pub steps_accepted: u64,
-    pub steps_rejected: u64,
-    /// Analytic Jacobians, LU factorisations of the 4x4 iteration matrix, evaluations of
-    /// the cylinder's right-hand side (a Jacobian counts as one).
-    pub jacobians: u64,
-    pub factorisations: u64,
-    pub function_evaluations: u64,
-    /// 9x9 matrix exponentials of the exact integrator (propagator cache misses).
-    pub exponentials: u64,
-    /// State-event searches (a guard may have crossed inside a sub-step).
-    pub guard_locations: u64,
-}
-
-impl Work {
-    /// The work done between `earlier` (a reading of the same instance) and `self`.
-    pub fn since(&self, earlier: &Work) -> Work {
-        Work {
-            cylinder_calls: self.cylinder_calls - earlier.cylinder_calls,
-            steps_accepted: self.steps_accepted - earlier.steps_accepted,
-            steps_rejected: self.steps_rejected - earlier.steps_rejected,
-            jacobians: self.jacobians - earlier.jacobians,
-            factorisations: self.factorisations - earlier.factorisations,
-            function_evaluations: self.function_evaluations - earlier.function_evaluations,
-            exponentials: self.exponentials - earlier.exponentials,
-            guard_locations: self.guard_locations - earlier.guard_locations,
-        }
-    }
-
-    fn add(&mut self, stats: &rosenbrock::Stats) {
-        self.cylinder_calls += 1;
-        self.steps_accepted += stats.accepted as u64;
-        self.steps_rejected += stats.rejected as u64;
-        self.jacobians += stats.jacobian_evaluations as u64;
-        self.factorisations += stats.factorisations as u64;
-        self.function_evaluations += stats.function_evaluations as u64;
-    }
-}
-
-/// The whole physical state and what is needed to advance it.
-#[derive(Clone)]
-pub struct Physics {
-    /// Coefficients, mode systems and the state.
-    actuator: Actuator,
-    /// What advances the actuator between time events ([`Params::solver_method`]).
-    integrator: ChosenIntegrator,
-    /// Inputs and step size (bits) of the last step if it left the state as it was, bit
-    /// for bit, with no clock running: the same step again changes nothing (a pure cache).
-    resting: Option<RestKey>,
-    /// The force on the rod averaged over the last step (an output, carried across a saved
-    /// state by the value array, so not part of the state bytes).
-    rod_force_mean: f64,
-}
-
-/// Inputs and step size as bits (see `Physics::resting`).
-type RestKey = [u64; 10];
-
-/// Inputs held over one step, as the equations use them.
-#[derive(Clone, Copy)]
-struct HeldInputs {
-    i_ref: f64,
-    rail: f64,
-    p_supply: f64,
-    /// The load on the rod: F_ext (N) with the force port, the host's acceleration of the
-    /// rod (m/s2) with the motion port.
-    load: f64,
-    /// Reference of the outer loop (Q_ref or x_ref).
-    reference: f64,
-}
-
-impl HeldInputs {
-    fn new(c: &Coefficients, inputs: &Inputs) -> HeldInputs {
-        let reference = match c.loops.mode {
-            ControlMode::Flow => inputs.q_ref,
-            ControlMode::Position => inputs.x_ref,
-            ControlMode::Current => 0.0,
-        };
-        HeldInputs {
-            i_ref: inputs.i_ref,
-            rail: driver::rail(c, inputs.v_supply),
-            p_supply: inputs.p_supply,
-            load: match c.cylinder.port {
-                RodPort::Force => inputs.f_ext,
-                RodPort::Motion => inputs.a_rod,
-            },
-            reference,
-        }
-    }
-}
+use components::cylinder;
+use integrators::chosen::ChosenIntegrator;
+use integrators::seam::Integrator;
 
 impl Physics {
     /// Builds the mode systems and puts the model in equilibrium for `inputs` at
@@ -325,9 +116,23 @@ impl Physics {
     }
 }
 
+impl Physics {
+    /// The outputs with the state moved `span` seconds along its current rates (the valve
+    /// and driver by their mode's matrix, the cylinder by its equations under `inputs`):
+    /// differences of these give the outputs' time derivatives. F_rod is the force at that
+    /// state, not a step's mean.
+    pub fn outputs_along(&self, inputs: &Inputs, span: f64) -> Outputs {
+        self.actuator.outputs_along(inputs, span)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::actuator::dynamics;
+    use crate::components::coefficients::Coefficients;
+    use crate::components::driver::MODES;
+    use crate::numerics::augmented_state::{self, Vector, I};
 
     /// `augmented_state::rate` and `augmented_state::propagate` compute only the evolving rows: no mode may give
     /// the held constants dynamics, and over a step they must come out as they went in.

@@ -18,8 +18,21 @@
 //! the step goes, and no equilibrium is computed but in the one case where a start's
 //! equilibrium decides the result (see [`start_keeps_the_free_linear_system`]).
 
-use super::actuator::{consistent_state, mode_systems, rest_state, Actuator};
-use super::*;
+use crate::actuator::{consistent_state, mode_systems, rest_state, Actuator};
+use crate::components::coefficients::Coefficients;
+use crate::components::driver::Mode;
+use crate::components::driver::MODES;
+use crate::components::outer_loop::OuterLoop;
+use crate::components::valve;
+use crate::held_inputs::HeldInputs;
+use crate::integrators::chosen::ChosenIntegrator;
+use crate::integrators::exact::driven_cylinder::DrivenCylinder;
+use crate::integrators::seam::Integrator;
+use crate::numerics::mode_systems::ModeSystem;
+use crate::params::ControlMode;
+use crate::params::Inputs;
+use crate::params::Params;
+use crate::physics::Physics;
 
 impl Physics {
     /// The same state under `params`, which differ from the current ones in tunable
@@ -107,6 +120,9 @@ fn start_keeps_the_free_linear_system(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::actuator::dynamics;
+    use crate::components::driver;
+    use crate::params::{DriverKind, Outputs, SolverMethod};
     use std::f64::consts::PI;
 
     /// A named change of parameters.

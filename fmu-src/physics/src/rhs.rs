@@ -15,13 +15,15 @@
 //! The digital parts (H-bridge PWM and PI, outer PID) are the physics' own, behind
 //! [`Sampled`]: they change the held inputs at their time events.
 
-use super::augmented_state::{self, Mat, Vector};
-use super::cylinder::{self, CylinderState};
-use super::driver::Mode;
-use super::hbridge::HBridgeState;
-use super::outer_loop::OuterLoop;
-use super::rosenbrock::STATE_SCALE;
-use super::{coil, valve, Coefficients, ControlMode, DriverKind, Outputs, Params};
+use crate::components::coefficients::Coefficients;
+use crate::components::cylinder::{self, CylinderState};
+use crate::components::driver::Mode;
+use crate::components::hbridge::HBridgeState;
+use crate::components::outer_loop::OuterLoop;
+use crate::components::{coil, valve};
+use crate::numerics::augmented_state::{self, Mat, Vector};
+use crate::numerics::rosenbrock::STATE_SCALE;
+use crate::params::{ControlMode, DriverKind, Outputs, Params};
 
 /// State size: coil current, PI integrator output, driver output, flapper position and
 /// velocity, spool, chamber pressures A and B, piston position and velocity.
@@ -90,7 +92,7 @@ impl WholeModel {
 
     /// The driver rail for a supply voltage (V).
     pub fn rail(&self, v_supply: f64) -> f64 {
-        super::driver::rail(&self.c, v_supply)
+        crate::components::driver::rail(&self.c, v_supply)
     }
 
     /// Coil resistance plus sense resistor (Ohm).

@@ -2,18 +2,24 @@
 //! instruction profile of its doSteps: `scripts/profile-step.sh` runs this under callgrind and
 //! splits the instructions counted inside [`one_do_step`] by part of the step.
 //!
-//!     step_profile WORKLOAD exact|fixed_cost [STEPS] [H]
+//!     step_profile WORKLOAD exact|fixed_cost [STEPS] [H] [--c-api]
 //!
 //! WORKLOAD is a bench workload's name (`bench --help` lists them in its table; e.g.
 //! `gait_position`); STEPS defaults to 5000 and H to 1e-4 s (0.5 s, as the bench's
 //! `--t-end 0.5`). Every instance of the workload (12 for the quadruped) is stepped in
 //! lock-step, inputs set before each doStep as the bench does through the C API. Prints the
 //! number of doSteps taken, which the script divides by.
+//!
+//! With `--c-api` the workload goes through the FMI 2 C API instead (`ehsv_tests::capi_steps`,
+//! as the bench's `instr/step` counts it): each communication step (SetReal of the inputs,
+//! DoStep, GetReal of i_coil, x_piston, p_A and Q_valve) inside
+//! `capi_steps::communication_step`, the function the script then counts under.
 
 use std::hint::black_box;
 use std::process::ExitCode;
 
 use ehsv_actuator::model::Model;
+use ehsv_tests::capi_steps;
 use ehsv_tests::workloads::{self, Signal, Workload, INPUTS};
 
 const DEFAULT_STEPS: usize = 5000;
@@ -23,12 +29,18 @@ struct Options {
     workload: Workload,
     steps: usize,
     h: f64,
+    /// Through the FMI 2 C API (`--c-api`), not the model's Rust API.
+    c_api: bool,
 }
 
 fn parse() -> Result<Options, String> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let c_api = args.last().is_some_and(|a| a == "--c-api");
+    if c_api {
+        args.pop();
+    }
     let [name, method, rest @ ..] = args.as_slice() else {
-        return Err("usage: step_profile WORKLOAD exact|fixed_cost [STEPS] [H]".into());
+        return Err("usage: step_profile WORKLOAD exact|fixed_cost [STEPS] [H] [--c-api]".into());
     };
     let method = match method.as_str() {
         "exact" => workloads::EXACT,
@@ -45,7 +57,7 @@ fn parse() -> Result<Options, String> {
         rest.get(i).map_or(Ok(default), |s| s.parse().map_err(|_| format!("bad number {s}")))
     };
     let steps = number(0, DEFAULT_STEPS as f64)? as usize;
-    Ok(Options { workload, steps, h: number(1, DEFAULT_H)? })
+    Ok(Options { workload, steps, h: number(1, DEFAULT_H)?, c_api })
 }
 
 /// A started instance of `workload` (its enumerations and reals set, initialised).
@@ -81,6 +93,9 @@ fn one_do_step(m: &mut Model, t: f64, h: f64) -> Result<(), String> {
 }
 
 fn run(o: &Options) -> Result<usize, String> {
+    if o.c_api {
+        return capi_steps::run(&o.workload, o.steps, o.h);
+    }
     let legs = &o.workload.legs;
     let mut models = legs.iter().map(|_| start(&o.workload)).collect::<Result<Vec<_>, _>>()?;
     for k in 0..o.steps {

@@ -12,7 +12,10 @@
 //! `--peer-rtol R` (default 1e-10, where the peer's accuracy comes near the FMU's),
 //! `--reference-rtol R` (default 1e-10), `--fmu-rtol R` (the FMU's `solver.rtol`: accuracy
 //! traded for speed; default its own, 1e-7), `--no-peer`, `--require-peer` (fail if CVODE cannot
-//! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`.
+//! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`,
+//! `--instructions-only` (only the instructions per communication step, counted with
+//! callgrind: `instructions.rs`), `--instr-steps N` (steps counted, default 5000, 500 with
+//! `--quick`), `--no-instructions` (no callgrind runs; without valgrind they are skipped).
 //!
 //! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the idle
 //! instance's outputs move, the step-to-rest current does not end at 5 mA, an output strays
@@ -23,6 +26,7 @@
 
 mod fmi;
 mod fmu_run;
+mod instructions;
 mod peer;
 mod reference;
 mod report;
@@ -75,6 +79,11 @@ struct Options {
     fmu_rtol: Option<f64>,
     /// `solver.h_internal` of the FMU (None: its default).
     h_internal: Option<f64>,
+    /// Count instructions per communication step with callgrind (off without valgrind).
+    instructions: bool,
+    /// Print only those (`--instructions-only`), and over how many steps.
+    instructions_only: bool,
+    instr_steps: usize,
 }
 
 fn default_library() -> PathBuf {
@@ -108,6 +117,9 @@ fn parse() -> Result<Options, String> {
         all_h: false,
         fmu_rtol: None,
         h_internal: None,
+        instructions: true,
+        instructions_only: false,
+        instr_steps: instructions::STEPS,
     };
     let mut args = std::env::args().skip(1);
     let number = |v: Option<String>, what: &str| -> Result<f64, String> {
@@ -119,6 +131,7 @@ fn parse() -> Result<Options, String> {
                 o.t_end = 0.02;
                 o.steps = vec![1e-4];
                 o.repeat = 1;
+                o.instr_steps = instructions::QUICK_STEPS;
             }
             "--t-end" => o.t_end = number(args.next(), "--t-end")?,
             "--h" => {
@@ -154,6 +167,11 @@ fn parse() -> Result<Options, String> {
             "--no-peer" => o.peer = false,
             "--require-peer" => o.require_peer = true,
             "--all-h" => o.all_h = true,
+            "--no-instructions" => o.instructions = false,
+            "--instructions-only" => o.instructions_only = true,
+            "--instr-steps" => {
+                o.instr_steps = number(args.next(), "--instr-steps")?.max(1.0) as usize
+            }
             "--lib" => o.lib = PathBuf::from(args.next().ok_or("--lib needs a path")?),
             "-h" | "--help" => return Err(String::new()),
             other => return Err(format!("unknown argument {other}")),
@@ -179,7 +197,27 @@ fn measure(
         rows.push(row);
         first_trace.get_or_insert(trace);
     }
+    // Counted once per workload, method and step (through FMI 2), shown on the first row.
+    if let Some(first) = rows.first_mut() {
+        first.instructions = count_instructions(o, w, h, problems);
+    }
     Ok(rows)
+}
+
+/// Instructions per communication step of `w` at `h` (callgrind), if counted; a failed
+/// count is a problem.
+fn count_instructions(
+    o: &Options,
+    w: &Workload,
+    h: f64,
+    problems: &mut Vec<String>,
+) -> Option<f64> {
+    if !o.instructions {
+        return None;
+    }
+    instructions::per_step(w, o.instr_steps, h)
+        .map_err(|e| problems.push(format!("{}: instructions per step at h = {h}: {e}", w.name)))
+        .ok()
 }
 
 /// One workload at one step size and the reference its rows are judged against.
@@ -248,6 +286,7 @@ impl<'a> Case<'a> {
             version: fmu.version(),
             rtf_wall: sim_time / best.wall,
             rtf_cpu: sim_time / best.cpu,
+            instructions: None,
             step_cpu,
             step_cpu_raw: timed.cpu.longest,
             step_wall_raw: timed.wall.longest,
@@ -450,16 +489,29 @@ fn run_peer(
 }
 
 fn main() -> ExitCode {
-    let o = match parse() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().is_some_and(|a| a == instructions::CHILD_FLAG) {
+        return exit_with(instructions::child(&args[1..]));
+    }
+    let mut o = match parse() {
         Ok(o) => o,
         Err(e) => {
             if !e.is_empty() {
                 eprintln!("bench: {e}");
             }
-            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--fmu-rtol R] [--h-internal S] [--no-peer] [--require-peer] [--all-h] [--lib PATH]");
+            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--fmu-rtol R] [--h-internal S] [--no-peer] [--require-peer] [--all-h] [--lib PATH] [--instructions-only] [--instr-steps N] [--no-instructions]");
             return if e.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
         }
     };
+    if o.instructions {
+        if let Some(why) = instructions::unavailable() {
+            println!("instr/step: skipped, {why} (install valgrind to count instructions)");
+            o.instructions = false;
+        }
+    }
+    if o.instructions_only {
+        return exit_with(print_instructions_only(&o));
+    }
     let (fmus, cvode) = match load_fmus(&o).and_then(|fmus| Ok((fmus, load_peer(&o)?))) {
         Ok(loaded) => loaded,
         Err(e) => {
@@ -478,6 +530,44 @@ fn main() -> ExitCode {
     } else {
         ExitCode::SUCCESS
     }
+}
+
+/// Success, or the error printed and failure.
+fn exit_with(result: Result<(), String>) -> ExitCode {
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("bench: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `--instructions-only`: instructions per communication step of every selected workload,
+/// method and step, nothing timed (the FMU's library is not loaded: the rlib is stepped).
+fn print_instructions_only(o: &Options) -> Result<(), String> {
+    if !o.instructions {
+        return Err("--instructions-only needs valgrind".into());
+    }
+    println!("{}", instructions::HOPSAN_REFERENCE);
+    println!("{}", report::INSTRUCTIONS_NOTE);
+    println!("{:<26} {:>5} {:>10} {:>12}", "workload", "h", "method", "instr/step");
+    for &h in &o.steps {
+        for w in workloads::all() {
+            let w = Workload { solver_rtol: o.fmu_rtol, h_internal: o.h_internal, ..w };
+            if !selected(o, &w, h) {
+                continue;
+            }
+            for &method in &o.methods {
+                let w = w.with_method(method);
+                let per_step = instructions::per_step(&w, o.instr_steps, h)?;
+                let method = instructions::method_name(method);
+                let count = report::instructions(Some(per_step));
+                println!("{:<26} {h:>5.0e} {method:>10} {count:>12}", w.name);
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The FMU's library, once per FMI version asked for.
@@ -516,6 +606,10 @@ fn print_preamble(o: &Options) {
     );
     println!("{}", report::timed_runs_note(o.repeat));
     println!("{}", workloads::DESCRIPTION);
+    if o.instructions {
+        println!("{}", report::INSTRUCTIONS_NOTE);
+    }
+    println!("{}", instructions::HOPSAN_REFERENCE);
     println!();
     report::header();
 }

@@ -18,6 +18,9 @@ pub struct Row {
     /// Best real-time factor over the untimed runs: wall, thread CPU.
     pub rtf_wall: f64,
     pub rtf_cpu: f64,
+    /// Instructions per communication step of one instance through the FMI 2 C API
+    /// (callgrind), on the first row of a (workload, method, step); None if not counted.
+    pub instructions: Option<f64>,
     /// Per-doStep thread CPU time, each call's shortest over the timed runs: the work.
     pub step_cpu: Summary,
     /// The slowest doStep of all timed runs as measured, in thread CPU and in wall time.
@@ -121,6 +124,26 @@ pub fn worst(deviations: &[f64]) -> (f64, usize) {
         .fold((0.0, 0), |acc, (j, &d)| if d > acc.0 { (d, j) } else { acc })
 }
 
+/// Instructions per step, in thousands separated by commas ("14,730"), or "-".
+pub fn instructions(count: Option<f64>) -> String {
+    let Some(count) = count else { return "-".into() };
+    let digits = format!("{:.0}", count);
+    let mut out = String::new();
+    for (k, c) in digits.chars().enumerate() {
+        if k > 0 && (digits.len() - k) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// What `instr/step` counts (printed above the table when counted).
+pub const INSTRUCTIONS_NOTE: &str = "\
+instr/step: instructions per communication step of one instance, counted by callgrind over the
+  run's first --instr-steps steps through the FMI 2 C API: fmi2SetReal of the inputs, fmi2DoStep,
+  fmi2GetReal of i_coil, x_piston, p_A and Q_valve (issue 37's measure; docs/benchmark.md).";
+
 fn us(s: f64) -> String {
     format!("{:.2}", s * 1e6)
 }
@@ -134,12 +157,13 @@ fn deviation(d: Option<(f64, usize)>) -> String {
 
 pub fn header() {
     println!(
-        "{:<22} {:>5} {:>4} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6} {:>6} {:>6} {:>6} {:>6} | {:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}",
+        "{:<22} {:>5} {:>4} {:>7} {:>7} {:>10} {:>7} {:>8} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6} {:>6} {:>6} {:>6} {:>6} | {:>7} {:>17} {:>6} {:>6} {:>6} {:>6} {:>8}",
         "workload",
         "h",
         "FMI",
         "RTF",
         "RTFcpu",
+        "instr/step",
         "mean",
         "p99.9",
         "maxwork",
@@ -179,12 +203,13 @@ pub fn print(row: &Row) {
         }
     };
     println!(
-        "{:<22} {:>5.0e} {:>4} {:>7.1} {:>7.1} {:>7} {:>8} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6.2} {:>6.2} {:>6.2} {:>6.3} {:>6.2} | {peer}",
+        "{:<22} {:>5.0e} {:>4} {:>7.1} {:>7.1} {:>10} {:>7} {:>8} {:>8} {:>8} {:>8} {:>17} {:>17} {:>6.2} {:>6.2} {:>6.2} {:>6.3} {:>6.2} | {peer}",
         row.workload,
         row.h,
         row.version.label(),
         row.rtf_wall,
         row.rtf_cpu,
+        instructions(row.instructions),
         us(row.step_cpu.mean),
         us(row.step_cpu.p999),
         us(row.step_cpu.max),
@@ -203,6 +228,10 @@ pub fn print(row: &Row) {
 pub const LEGEND: &str = "\
 RTF: simulated time / wall time of the best untimed run (all instances; doStep + SetReal of 4
   inputs + GetReal of 12 outputs per instance and step); RTFcpu: the same on thread CPU time.
+instr/step: instructions per communication step of one instance through the FMI 2 C API
+  (SetReal of 4 inputs, DoStep, GetReal of i_coil, x_piston, p_A, Q_valve), callgrind, over the
+  first --instr-steps steps (5000; 500 with --quick); on the first row of each workload and
+  method, a dash where not counted (no valgrind, --no-instructions).
 mean, p99.9, maxwork: one doStep in thread CPU time (CLOCK_THREAD_CPUTIME_ID) [us], each call
   taken at its shortest over the timed runs (as many as --repeat): the work of the call, the
   same in every run; maxwork is the slowest of those, the figure the targets judge. maxraw: the

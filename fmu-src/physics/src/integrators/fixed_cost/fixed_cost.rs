@@ -1,0 +1,279 @@
+//! The fixed-cost integrator behind the seam ([`crate::integrators::seam`]): work fixed by the
+//! segment's length, for real-time rigs. Each segment is cut into `n` equal internal steps,
+//! `n = ceil(span / h_internal)` (`solver.h_internal`, 1e-4 s by default: one internal
+//! step per 1e-4 s communication step, one per 50 us period of the digital loops), and
+//! where the internal step divides the communication step the cuts do not depend on it.
+//! Per internal step:
+//! * driver, coil and valve go by the mode's propagator over the step (cached per mode
+//!   and span; the whole steps' built when the first step is prepared); a guard that
+//!   crossed inside the step is placed by one linear interpolation, the mode chosen again
+//!   there ([`Actuator::settle`]) and the rest of the step taken in the new one: no event
+//!   search; the parts of a step either side of such a change go by the mode's ladder of
+//!   prebuilt exponentials ([`super::dyadic_ladder`]), so no doStep builds one;
+//! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one linearly implicit step of
+//!   [`super::lean_cylinder`] (cut where the piston meets a stop or a chamber enters the
+//!   cavitation band; in halves in a stop's contact), the spool on the straight line
+//!   between its positions at the step's ends.
+
+use crate::actuator::{current_system, system_key, Actuator};
+use crate::components::driver;
+use crate::components::driver::Mode;
+use crate::components::driver::MODES;
+use crate::components::valve;
+use crate::events::StepEvents;
+use crate::events::Work;
+use crate::held_inputs::HeldInputs;
+use crate::integrators::fixed_cost::dyadic_ladder::DyadicLadders;
+use crate::integrators::fixed_cost::lean_cylinder;
+use crate::integrators::seam::{Integrator, Segment};
+use crate::numerics::augmented_state;
+use crate::numerics::augmented_state::Vector;
+use crate::numerics::augmented_state::{RAIL, U};
+use crate::numerics::mode_systems::Propagator;
+use crate::numerics::mode_systems::PropagatorCache;
+use crate::numerics::slew_end;
+use crate::params::ControlMode;
+
+/// Mode changes placed inside one internal step at most; more are decided at its end.
+const MAX_SWITCHES: usize = 3;
+
+/// The fixed-cost integrator's own state: the propagators it built (a pure cache).
+#[derive(Clone)]
+pub(crate) struct FixedCostIntegrator {
+    /// The longest internal step (s), `solver.h_internal`.
+    h_internal: f64,
+    /// Whole internal steps' propagators, per mode and step.
+    cache: PropagatorCache,
+    /// Parts of internal steps (either side of a mode change placed inside one).
+    ladders: DyadicLadders,
+    /// The mode pairs whose slew ends [`slew_end`] takes.
+    slew_exits: slew_end::SlewExits,
+}
+
+impl FixedCostIntegrator {
+    pub(crate) fn new(h_internal: f64, actuator: &Actuator) -> FixedCostIntegrator {
+        FixedCostIntegrator {
+            h_internal,
+            cache: PropagatorCache::new(),
+            ladders: DyadicLadders::new(h_internal),
+            slew_exits: slew_end::slew_exits(&actuator.systems),
+        }
+    }
+
+    /// How many internal steps cut a segment of `span`.
+    fn internal_steps(&self, span: f64) -> usize {
+        augmented_state::ceil_count(span / self.h_internal).max(1)
+    }
+}
+
+impl Integrator for FixedCostIntegrator {
+    fn evolve(
+        &mut self,
+        actuator: &mut Actuator,
+        segment: Segment,
+        inputs: &HeldInputs,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        let n = self.internal_steps(segment.span);
+        let h = segment.span / n as f64;
+        // An internal step's end is the next one's start (the cylinder's step leaves the
+        // driver and valve as they are).
+        let mut start = spool_position(actuator);
+        for _ in 0..n {
+            self.driver_and_valve(actuator, h, events)?;
+            let end = spool_position(actuator);
+            lean_cylinder::step(actuator, [start, end], h, inputs)?;
+            start = end;
+        }
+        Ok(())
+    }
+
+    /// The propagators of whole internal steps over the communication step and the loop
+    /// period, for every mode at the stops the probe ended in: a mode's first use inside a
+    /// doStep would otherwise build its exponential there (the slowest doSteps).
+    fn prepare(&mut self, actuator: &Actuator, step: f64) {
+        let c = &actuator.params;
+        let looping = c.loops.mode != ControlMode::Current;
+        for span in [Some(step), looping.then(|| 1.0 / c.loops.f_sample)].into_iter().flatten() {
+            let h = span / self.internal_steps(span) as f64;
+            for mode in MODES.into_iter().filter(|&m| m != Mode::Switched) {
+                let key = system_key(mode, actuator.stops);
+                let sys = actuator.systems[mode.index()].with_stops(c, actuator.stops);
+                // A mode this driver never enters may have no propagator: nothing to build.
+                let _ = self.cache.get(key, &sys, h, true, 1);
+                let _ = self.ladders.slot(key, &sys);
+            }
+        }
+    }
+
+    fn adopt_prepared(&mut self, probe: FixedCostIntegrator) {
+        self.cache = probe.cache;
+        self.ladders = probe.ladders;
+    }
+
+    fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool) {
+        if systems_rebuilt {
+            self.cache.clear();
+            self.ladders.clear();
+            self.slew_exits = slew_end::slew_exits(&actuator.systems);
+        }
+    }
+
+    fn count_work(&self, work: &mut Work) {
+        work.exponentials += self.cache.exponentials + self.ladders.exponentials;
+    }
+}
+
+impl FixedCostIntegrator {
+    /// Driver, coil and valve over one internal step of `h`. A guard of the mode that
+    /// crossed inside it is placed by linear interpolation of its values at the ends (no
+    /// iteration), the state propagated there, the mode changed and the rest of the step
+    /// taken in the new one; after [`MAX_SWITCHES`] of those the mode is decided at the
+    /// step's end alone. A slew from the step's start into the linear mode (a new command:
+    /// a step of it, or a loop's sample) is placed exactly first ([`Self::slew_from_start`]).
+    fn driver_and_valve(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        let (mut left, mut ahead) = (h, None);
+        let mut first = 0;
+        if let Some((tau, end)) = self.slew_from_start(actuator, h, events)? {
+            (left, ahead, first) = (h - tau, end, 1);
+        }
+        for switches in first..=MAX_SWITCHES {
+            let mut z1 = match ahead.take() {
+                Some(end) => end,
+                None => self.propagate(actuator, left, left == h)?,
+            };
+            let crossing = (switches < MAX_SWITCHES)
+                .then(|| first_crossing(actuator, &z1))
+                .flatten()
+                .filter(|&fraction| fraction < 1.0);
+            if let Some(fraction) = crossing {
+                let tau = left * fraction;
+                z1 = self.propagate(actuator, tau, false)?;
+                left -= tau;
+            }
+            // Inside every guard of its mode the state stays in that mode: nothing to clip
+            // or choose again.
+            if crossing.is_some() || !inside_guards(actuator, &z1) {
+                let before = actuator.mode;
+                driver::clip_overshoot(&actuator.params, &mut z1, before, crossing.is_some());
+                actuator.settle(&mut z1);
+                driver::count_switch(events, before, actuator.mode);
+            }
+            actuator.z = z1;
+            if crossing.is_none() || left <= 0.0 {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// A slew from the internal step's start that ends inside it in the linear mode, without
+    /// the valve at a stop: its end is the root of a quadratic ([`slew_end::end_time`]:
+    /// exact, no search), the state is taken there and settled, and the linear mode's end of
+    /// the step is its start pulled back to the step's ([`slew_end::pulled_back`]) through
+    /// the whole step's propagator (where the pair does not qualify `None`: the rest goes by
+    /// the ladder). Its end and that state; `None` for any other step.
+    fn slew_from_start(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        events: &mut StepEvents,
+    ) -> Result<Option<(f64, Option<Vector>)>, String> {
+        let Some(tau) = self.slew_end(actuator, h) else {
+            return Ok(None);
+        };
+        let (start, from) = (actuator.z, actuator.mode);
+        let mut z1 = self.propagate(actuator, tau, false)?;
+        driver::clip_overshoot(&actuator.params, &mut z1, from, true);
+        actuator.settle(&mut z1);
+        driver::count_switch(events, from, actuator.mode);
+        actuator.z = z1;
+        let Some(exit) = slew_end::exit(&self.slew_exits, from, actuator.mode) else {
+            return Ok(Some((tau, None)));
+        };
+        let to = &actuator.systems[actuator.mode.index()];
+        let Some(mut pulled) = slew_end::pulled_back(to, exit, &start, tau) else {
+            return Ok(Some((tau, None)));
+        };
+        // On the new mode's manifold, as the state at the switch is (the manifold is
+        // invariant: putting the start on it puts the switch on it).
+        driver::project_onto(&actuator.params, &actuator.hbridge, &mut pulled, actuator.mode);
+        Ok(Some((tau, Some(self.propagate_from(actuator, &pulled, h, true)?))))
+    }
+
+    /// Where a slew of the actuator's mode, from its state, into the linear mode ends inside
+    /// an internal step of `h` short of the rails; `None` where it does not or the valve is
+    /// at a stop (its system is not the one the pulled-back start is for).
+    fn slew_end(&self, actuator: &Actuator, h: f64) -> Option<f64> {
+        if actuator.stops != valve::Stops::default() {
+            return None;
+        }
+        let exit = slew_end::exit(&self.slew_exits, actuator.mode, Mode::Linear)?;
+        let (c, z) = (&actuator.params, &actuator.z);
+        let tau = slew_end::end_time(c, exit, z)?;
+        let rate = if actuator.mode == Mode::SlewUp { c.slew_rate } else { -c.slew_rate };
+        (tau < h && (z[U] + rate * tau).abs() < z[RAIL]).then_some(tau)
+    }
+
+    /// Driver, coil and valve over `h` in the current mode from the actuator's state (see
+    /// [`Self::propagate_from`]).
+    fn propagate(&mut self, actuator: &Actuator, h: f64, nominal: bool) -> Result<Vector, String> {
+        self.propagate_from(actuator, &actuator.z, h, nominal)
+    }
+
+    /// Driver, coil and valve over `h` in the actuator's current mode from `z`, put on its
+    /// manifold: a whole internal step (`nominal`) by its cached propagator, a part of one by
+    /// the mode's ladder. The H-bridge's switched spans go by Taylor series, as in the exact
+    /// integrator (short and irregular: a series beats an exponential).
+    fn propagate_from(
+        &mut self,
+        actuator: &Actuator,
+        z: &Vector,
+        h: f64,
+        nominal: bool,
+    ) -> Result<Vector, String> {
+        let c = &actuator.params;
+        let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+        let mut z1 = if actuator.mode == Mode::Switched {
+            Propagator::taylor_only(sys, h, 1).apply_all(sys, z)
+        } else if nominal {
+            self.cache.get(actuator.system_key(), sys, h, true, 1)?.apply_all(sys, z)
+        } else {
+            self.ladders.propagate(actuator.system_key(), sys, h, z)?
+        };
+        driver::project_onto(c, &actuator.hbridge, &mut z1, actuator.mode);
+        Ok(z1)
+    }
+}
+
+/// Where in a propagation from the actuator's state to `z1` the first of its mode's guards
+/// crossed zero upwards, as a fraction of the span (linear interpolation); `None` if none did.
+fn first_crossing(actuator: &Actuator, z1: &Vector) -> Option<f64> {
+    let c = &actuator.params;
+    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    (0..sys.n_guards)
+        .filter_map(|g| {
+            let (v0, v1) = (sys.guard_value(g, &actuator.z), sys.guard_value(g, z1));
+            (v0 < 0.0 && v1 > 0.0).then(|| v0 / (v0 - v1))
+        })
+        .reduce(f64::min)
+}
+
+/// Whether every guard of the actuator's mode is negative at `z`.
+fn inside_guards(actuator: &Actuator, z: &Vector) -> bool {
+    let c = &actuator.params;
+    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    (0..sys.n_guards).all(|g| sys.guard_value(g, z) < 0.0)
+}
+
+/// The spool's position in the actuator's current mode (held at a stop where it has one).
+fn spool_position(actuator: &Actuator) -> f64 {
+    let c = &actuator.params;
+    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    sys.spool_motion(&actuator.z)[0]
+}

@@ -1,0 +1,263 @@
+//! The fixed-cost method's step of the cylinder: one linearly implicit step per internal
+//! step, whatever happens in it. The model is linearised once at the step's start
+//! ([`linearise`]: the rates, the analytic Jacobian `J` and the spool's sensitivity), and
+//!
+//! ```text
+//! (I - gamma h J) k = h (f(y0) + gamma h df/dx_s x_s'),    y1 = y0 + k
+//! ```
+//!
+//! with `gamma` = [`GAMMA`] is solved by elimination written out for the cylinder's pattern
+//! (`x' = v`, so the 4x4 folds to a 3x3 in `p_A`, `p_B`, `v`; no pivoting, no loops). At
+//! `gamma = 1/2` this is the linearly implicit trapezoidal rule: second order, A-stable,
+//! the hydraulic resonance neither damped nor excited. Its stiff modes (the orifices' laminar
+//! slope near balance, the friction's creep band) are damped but flip sign from step to step
+//! where `h |lambda| > 2`; slightly above one half ([`GAMMA`]) they decay faster, at a
+//! first-order error term `(gamma - 1/2) h^2 J f` far below the bound. Where a step crosses
+//! the friction's creep band or a chamber heads into the cavitation band, the slope of
+//! that term is replaced by its secant over the step, as the Rosenbrock path does
+//! ([`secant_friction`], [`secant_cavitation`]); a pressure that ends below the cavitation
+//! floor is held at it.
+
+use crate::actuator::Actuator;
+use crate::components::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, PA, PB, V, X};
+use crate::components::cylinder_jacobian::{linearise, secant_cavitation, secant_friction};
+use crate::components::cylinder_terms::{chamber_volumes, endstop_force, relief_flow};
+use crate::held_inputs::HeldInputs;
+use crate::params::RodPort;
+
+/// The implicitness of the step: 1/2 is the trapezoidal rule; a little above it the stiff
+/// modes' factor `(1 - (1 - gamma) z) / (1 - gamma z)` stays further from -1.
+pub(crate) const GAMMA: f64 = 0.5;
+
+/// Advances the actuator's cylinder by `h`, the spool moving from `spool[0]` to `spool[1]`
+/// (positions, m) on a straight line.
+pub(crate) fn step(
+    actuator: &mut Actuator,
+    spool: [f64; 2],
+    h: f64,
+    inputs: &HeldInputs,
+) -> Result<(), String> {
+    let params = &actuator.params.cylinder;
+    let y0 = actuator.cylinder.state.to_array();
+    let y1 = advance(params, &y0, spool, h, (inputs.p_supply, inputs.load));
+    if !y1.iter().all(|v| v.is_finite()) {
+        return Err("the cylinder's state is not finite; step refused".into());
+    }
+    actuator.cylinder.state = CylinderState::from_array(&y1);
+    actuator.work.steps_accepted += 1;
+    actuator.work.jacobians += 1;
+    actuator.work.factorisations += 1;
+    Ok(())
+}
+
+/// The state after one step of `h` from `y0` (see the module documentation). A step whose
+/// end-stop contact switches (the piston reaching a stop's face, where the damper's force
+/// jumps in, or the contact force falling to zero, a kink) is cut there, the switch placed
+/// by one interpolation along the step, and the rest taken from a new linearisation.
+pub(crate) fn advance(
+    params: &CylinderParams,
+    y0: &Vec4,
+    spool: [f64; 2],
+    h: f64,
+    loads: (f64, f64),
+) -> Vec4 {
+    if params.port == RodPort::Force && contact_force(params, y0) != 0.0 {
+        // In a stop's contact (1e8 N/m against the load: h w = 0.45 at 1e-4 s) in halves.
+        let middle = 0.5 * (spool[0] + spool[1]);
+        let y_half = advance_once(params, y0, [spool[0], middle], 0.5 * h, loads);
+        return advance_once(params, &y_half, [middle, spool[1]], 0.5 * h, loads);
+    }
+    advance_once(params, y0, spool, h, loads)
+}
+
+fn advance_once(
+    params: &CylinderParams,
+    y0: &Vec4,
+    spool: [f64; 2],
+    h: f64,
+    loads: (f64, f64),
+) -> Vec4 {
+    let linear = Linearised::at(params, y0, spool, h, loads);
+    let y1 = linear.step(params, y0, h);
+    if params.port == RodPort::Motion {
+        return y1;
+    }
+    let contact = contact_switch(params, y0, &y1);
+    let cavitation = pressure_switch(params, y0, &y1);
+    let fraction = match (contact, cavitation) {
+        (Some(a), Some(b)) => a.min(b),
+        (a, b) => match a.or(b) {
+            Some(f) => f,
+            None => return y1,
+        },
+    };
+    let mut y_cut = linear.step(params, y0, fraction * h);
+    if contact == Some(fraction) && contact_force(params, y0) == 0.0 {
+        // Onto the face: a hair inside, so that the damper's force and both slopes act.
+        let half = 0.5 * params.stroke;
+        y_cut[X] = y_cut[X].signum() * half * (1.0 + 1e-12);
+    }
+    let spool_cut = spool[0] + fraction * (spool[1] - spool[0]);
+    let rest = h - fraction * h;
+    Linearised::at(params, &y_cut, [spool_cut, spool[1]], rest, loads).step(params, &y_cut, rest)
+}
+
+/// The model linearised at a step's start: rates, Jacobian (with the secants a fixed step
+/// needs) and the rates' drift with the spool's motion.
+struct Linearised {
+    f: Vec4,
+    jac: Mat4,
+    /// `df/dx_s x_s'` over the step.
+    drift: Vec4,
+}
+
+impl Linearised {
+    fn at(params: &CylinderParams, y0: &Vec4, spool: [f64; 2], h: f64, loads: (f64, f64)) -> Self {
+        let (p_supply, load) = loads;
+        let (f, mut jac, f_xs) = linearise(params, y0, spool[0], p_supply, load);
+        secant_friction(params, y0, f[V], h, &mut jac);
+        secant_cavitation(params, y0, &f, h, &mut jac);
+        secant_relief(params, y0, &f, h, &mut jac);
+        let spool_rate = (spool[1] - spool[0]) / h;
+        Linearised { f, jac, drift: f_xs.map(|d| d * spool_rate) }
+    }
+
+    /// One linearly implicit step of `h` from `y0`, the pressures held at the floor.
+    fn step(&self, params: &CylinderParams, y0: &Vec4, h: f64) -> Vec4 {
+        let s = GAMMA * h;
+        let rhs = [0, 1, 2, 3].map(|k| h * (self.f[k] + s * self.drift[k]));
+        let k = solve_shifted(&self.jac, s, &rhs);
+        let mut y1 = [y0[PA] + k[PA], y0[PB] + k[PB], y0[X] + k[X], y0[V] + k[V]];
+        for p in [PA, PB] {
+            y1[p] = y1[p].max(params.p_cavitation);
+        }
+        y1
+    }
+}
+
+/// For a step in which a chamber's pressure rises into its relief valve's law, the valve's
+/// slope in `jac` replaced by its secant from `p` to the explicit prediction `p + h p'`
+/// where that is the steeper: the law starts with zero slope at the cracking pressure, so
+/// a step from there saw no valve and ran 9 % past the override (100 Hz 10 mA squares).
+fn secant_relief(params: &CylinderParams, y: &Vec4, rates: &Vec4, h: f64, jac: &mut Mat4) {
+    if params.relief_p_crack == 0.0 {
+        return;
+    }
+    let volumes = chamber_volumes(params, y[X]);
+    for (k, (volume, _)) in [PA, PB].into_iter().zip(volumes) {
+        let (p0, rate) = (y[k], rates[k]);
+        if rate <= 0.0 {
+            continue;
+        }
+        let p1 = p0 + h * rate;
+        let ((q0, tangent), (q1, _)) = (relief_flow(params, p0), relief_flow(params, p1));
+        let secant = (q1 - q0) / (p1 - p0);
+        if secant > tangent {
+            jac[k][k] -= params.beta / volume * (secant - tangent);
+        }
+    }
+}
+
+/// Where in a step from `y0` to `y1` a chamber's pressure first crosses a kink of its
+/// laws, by linear interpolation: entering the cavitation band from above (its bulk
+/// modulus starts to fade there) or rising through the relief valve's cracking pressure.
+fn pressure_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64> {
+    let band_top = params.p_cavitation + params.dp_cavitation_band;
+    let crack = params.p_tank + params.relief_p_crack;
+    let relief = params.relief_p_crack != 0.0;
+    [PA, PB]
+        .into_iter()
+        .filter_map(|k| {
+            let (p0, p1) = (y0[k], y1[k]);
+            let level = if p0 > band_top && p1 < band_top {
+                band_top
+            } else if relief && p0 < crack && p1 > crack {
+                crack
+            } else {
+                return None;
+            };
+            Some((p0 - level) / (p0 - p1))
+        })
+        .filter(|&f| f > 0.0 && f < 1.0)
+        .reduce(f64::min)
+}
+
+/// The contact force `k d + c d'` of the stop on the side of `y`'s position, positive while
+/// the stop pushes, extended linearly outside the stop (`d < 0`): the guard of a contact
+/// switch, zero out of contact.
+fn contact_force(params: &CylinderParams, y: &Vec4) -> f64 {
+    endstop_force(params, y[X], y[V]).0.abs()
+}
+
+/// Where in a step from `y0` to `y1` the end-stop contact switches, as a fraction of the
+/// step in (0, 1): reaching a stop's face (the position interpolated linearly onto it), or
+/// the contact force falling to zero (interpolated linearly from its value at `y0` to its
+/// linear extension at `y1`). `None` where neither happens.
+fn contact_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64> {
+    let half = 0.5 * params.stroke;
+    let side = if y0[X] + y1[X] >= 0.0 { 1.0 } else { -1.0 };
+    let depth = |y: &Vec4| side * y[X] - half;
+    let fraction = if contact_force(params, y0) == 0.0 {
+        let (d0, d1) = (depth(y0), depth(y1));
+        (d0 <= 0.0 && d1 > 0.0).then(|| -d0 / (d1 - d0))?
+    } else {
+        let push = |y: &Vec4| params.k_endstop * depth(y) + params.c_endstop * side * y[V];
+        let (s0, s1) = (push(y0), push(y1));
+        (s1 < 0.0).then(|| s0 / (s0 - s1))?
+    };
+    (fraction > 0.0 && fraction < 1.0).then_some(fraction)
+}
+
+/// Solves `(I - s J) k = r` for the cylinder's Jacobian, whose position row is `x' = v`
+/// (`J[X] = e_V`): `k_x = r_x + s k_v` folds it into the other three rows, which Cramer's
+/// rule solves (three determinants of 3x3 minors over one division).
+fn solve_shifted(jac: &Mat4, s: f64, r: &Vec4) -> Vec4 {
+    // Rows PA, PB, V of (I - s J) with the X column folded into the V column.
+    let row = |i: usize| {
+        let j = &jac[i];
+        let diagonal = |c: usize| if c == i { 1.0 } else { 0.0 };
+        let m = [PA, PB, V].map(|c| diagonal(c) - s * j[c]);
+        let folded_v = m[2] - s * s * j[X];
+        ([m[0], m[1], folded_v], r[i] + s * j[X] * r[X])
+    };
+    let (a0, b0) = row(PA);
+    let (a1, b1) = row(PB);
+    let (a2, b2) = row(V);
+    let det3 = |c0: [f64; 3], c1: [f64; 3], c2: [f64; 3]| {
+        c0[0] * (c1[1] * c2[2] - c1[2] * c2[1]) - c1[0] * (c0[1] * c2[2] - c0[2] * c2[1])
+            + c2[0] * (c0[1] * c1[2] - c0[2] * c1[1])
+    };
+    // Columns of the 3x3 and of the right-hand side.
+    let col = |k: usize| [a0[k], a1[k], a2[k]];
+    let b = [b0, b1, b2];
+    let inv = 1.0 / det3(col(0), col(1), col(2));
+    let k_pa = det3(b, col(1), col(2)) * inv;
+    let k_pb = det3(col(0), b, col(2)) * inv;
+    let k_v = det3(col(0), col(1), b) * inv;
+    [k_pa, k_pb, r[X] + s * k_v, k_v]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The folded 3x3 solves the full 4x4 system.
+    #[test]
+    fn the_folded_solve_solves_the_whole_system() {
+        let jac: Mat4 = [
+            [-3.0e4, 2.0e2, 5.0e6, -1.0e8],
+            [1.5e2, -2.5e4, -4.0e6, 6.0e7],
+            [0.0, 0.0, 0.0, 1.0],
+            [4.0e-5, -2.5e-5, -1.0e3, -40.0],
+        ];
+        let r = [1.0e3, -2.0e3, 1.0e-6, 3.0e-3];
+        let s = 5.5e-5;
+        let k = solve_shifted(&jac, s, &r);
+        for i in 0..4 {
+            let applied: f64 =
+                (0..4).map(|c| (if c == i { 1.0 } else { 0.0 } - s * jac[i][c]) * k[c]).sum();
+            let scale = r[i].abs().max(1e-12);
+            assert!((applied - r[i]).abs() <= 1e-9 * scale, "row {i}: {applied} vs {}", r[i]);
+        }
+    }
+}
