@@ -365,6 +365,29 @@ pub use crate::physics::VALVE_RATED_CURRENT;
 /// The fastest rod motion a host may prescribe (m/s).
 const MAX_ROD_SPEED: f64 = 10.0;
 
+/// Where the physics of the parameters ends (issue 37; each row's comment says why).
+/// A PI loop's proportional gain: 1e8 V/A puts the largest rail (1 kV) at 10 uA of error, a
+/// thousandth of the rated current (more gain makes it an on-off switch); an op-amp's
+/// open-loop gain (~1e6) on a 100 Ohm sense resistor gives no more.
+const MAX_PI_KP: f64 = 1.0e8;
+/// Its integral gain: MAX_PI_KP with an integral corner Ki/Kp of 1e6 1/s, the bandwidth of
+/// the op-amps and converters that realise it.
+const MAX_PI_KI: f64 = 1.0e14;
+/// An op-amp's (or amplifier's) output slews at most ~1e4 V/us.
+const MAX_SLEW_RATE: f64 = 1.0e10;
+/// Forces on the rod: F_ext's range.
+const MAX_FORCE: f64 = 1.0e5;
+/// Leakage: the valve's rated flow (2.5e-4 m3/s) through a 0.25 bar drop.
+const MAX_LEAK: f64 = 1.0e-8;
+/// The outer loops' proportional gains: an error of 1 um (position) or 1e-9 m3/s (flow, a
+/// millionth of Q_ref's range) commands the largest current (0.1 A).
+const MAX_POSITION_KP: f64 = 1.0e5;
+const MAX_FLOW_KP: f64 = 1.0e8;
+/// Their integral and derivative times: from the fastest sample period (1 us, loop.f_sample's
+/// maximum) to a second, beyond which the derivative action acts on nothing an actuator does.
+const MIN_LOOP_TIME: f64 = 1.0e-6;
+const MAX_LOOP_TIME: f64 = 1.0;
+
 /// Longest stroke (m) of a servo cylinder this model describes (`cylinder.stroke`'s maximum,
 /// which bounds `x_ref`).
 const MAX_STROKE: f64 = 1.0;
@@ -487,37 +510,53 @@ variable_table! {
     DRIVER => param[driver] coded: enumeration("driver", &DRIVER_TYPE, "Coil driver topology"),
     CONTROL_MODE => param[control_mode] coded: enumeration("control_mode", &CONTROL_MODE_TYPE, "Which command drives the coil current"),
     // Driver
+    // Ranges end where the physics does (issue 37: driver.slew_rate = 1e300 was accepted and
+    // hung fixed_cost's initialisation). PI gains: MAX_PI_KP and MAX_PI_KI below.
     DRIVER_KP => param[opamp.kp] real: param("driver.Kp", Some("V/A"), "Op-amp PI proportional gain (= G*R_s; the paper's linear analysis writes R_s)")
         .non_negative()
+        .range(Some(0.0), Some(MAX_PI_KP))
         .tunable(),
     DRIVER_KI => param[opamp.ki] real: param("driver.Ki", Some("V/(A.s)"), "Op-amp PI integral gain (= G*R_s/(R_f*C_f)); default Ki/Kp = R/L cancels the coil pole")
         .non_negative()
+        .range(Some(0.0), Some(MAX_PI_KI))
         .tunable(),
+    // At most the largest supply (V_supply up to 1 kV): a larger drop leaves no output swing.
     DRIVER_V_DROP => param[opamp_v_drop] real: param("driver.V_drop", Some("V"), "Output stage drop: the output saturates at +-(V_supply - V_drop)")
         .non_negative()
+        .range(Some(0.0), Some(1000.0))
         .tunable(),
-    DRIVER_SLEW_RATE => param[opamp.slew_rate] real: param("driver.slew_rate", Some("V/s"), "Op-amp output slew-rate limit (20 V/us)").positive().tunable(),
+    DRIVER_SLEW_RATE => param[opamp.slew_rate] real: param("driver.slew_rate", Some("V/s"), "Op-amp output slew-rate limit (20 V/us)").positive().range(Some(0.0), Some(MAX_SLEW_RATE)).tunable(),
     // Coil
-    COIL_L => param[coil.inductance] real: param("coil.L", Some("H"), "Torque-motor coil (apparent) inductance").positive(),
-    COIL_R => param[coil.resistance] real: param("coil.R", Some("Ohm"), "Torque-motor coil resistance").positive(),
-    COIL_R_SENSE => param[coil.r_sense] real: param("coil.R_sense", Some("Ohm"), "Current-sense resistor in series with the coil").non_negative(),
+    // Torque-motor coils: 0.1 mH (a few turns) to 1 kH, beyond any coil a valve carries (the
+    // paper's is 3.2 H); a smaller L makes L/R a time constant below a nanosecond.
+    COIL_L => param[coil.inductance] real: param("coil.L", Some("H"), "Torque-motor coil (apparent) inductance").range(Some(1.0e-4), Some(1.0e3)),
+    // Resistances up to 1 MOhm: at 1 kV such a coil carries 1 mA, a tenth of the rated current.
+    COIL_R => param[coil.resistance] real: param("coil.R", Some("Ohm"), "Torque-motor coil resistance").positive().range(Some(0.0), Some(1.0e6)),
+    COIL_R_SENSE => param[coil.r_sense] real: param("coil.R_sense", Some("Ohm"), "Current-sense resistor in series with the coil").non_negative().range(Some(0.0), Some(1.0e6)),
+    // The motor's own force constant bounds its back-EMF: K1 (2.8 N.m/A) over a ~1 cm arm is
+    // ~300 V.s/m; 1e5 is 300 times that.
     COIL_K_B => param[coil.k_backemf] real: param("coil.K_b", Some("V.s/m"), "Back-EMF constant on the flapper velocity (0: already in the apparent inductance)")
-        .non_negative(),
+        .non_negative().range(Some(0.0), Some(1.0e5)),
     // Valve (Moog 30 linear model)
-    VALVE_K1 => param[valve.k1] real: param("valve.K1", Some("N.m/A"), "Torque-motor gain (0.025 in-lb/mA)").positive(),
-    VALVE_KF => param[valve.kf] real: param("valve.Kf", Some("N.m/m"), "Net stiffness on flapper/armature (115 in-lb/in)").positive(),
-    VALVE_KW => param[valve.kw] real: param("valve.Kw", Some("N.m/m"), "Feedback wire stiffness (16.7 in-lb/in)").positive(),
-    VALVE_K2 => param[valve.k2] real: param("valve.K2", Some("m2/s"), "Hydraulic amplifier flow gain (150 in3/s/in)").positive(),
-    VALVE_K3 => param[valve.k3] real: param("valve.K3", Some("m2/s"), "Spool/bushing flow gain (1030 in3/s/in)").positive(),
-    VALVE_A_S => param[valve.spool_area] real: param("valve.A_s", Some("m2"), "Spool end area (0.026 in2)").positive(),
+    // Valve constants: a factor of about 100 to 1000 either side of the Moog 30's (the paper's
+    // values in the descriptions) spans every flapper-nozzle valve made; beyond, the first
+    // stage's coefficients (K1/Kf, Kw/Kf, K2/A_s) leave every time scale a valve has.
+    VALVE_K1 => param[valve.k1] real: param("valve.K1", Some("N.m/A"), "Torque-motor gain (0.025 in-lb/mA)").positive().range(Some(0.0), Some(1.0e3)),
+    VALVE_KF => param[valve.kf] real: param("valve.Kf", Some("N.m/m"), "Net stiffness on flapper/armature (115 in-lb/in)").range(Some(1.0), Some(1.0e6)),
+    VALVE_KW => param[valve.kw] real: param("valve.Kw", Some("N.m/m"), "Feedback wire stiffness (16.7 in-lb/in)").positive().range(Some(0.0), Some(1.0e5)),
+    VALVE_K2 => param[valve.k2] real: param("valve.K2", Some("m2/s"), "Hydraulic amplifier flow gain (150 in3/s/in)").positive().range(Some(0.0), Some(10.0)),
+    VALVE_K3 => param[valve.k3] real: param("valve.K3", Some("m2/s"), "Spool/bushing flow gain (1030 in3/s/in)").positive().range(Some(0.0), Some(100.0)),
+    // Spool end areas: 0.4 mm to 110 mm diameter.
+    VALVE_A_S => param[valve.spool_area] real: param("valve.A_s", Some("m2"), "Spool end area (0.026 in2)").range(Some(1.0e-7), Some(1.0e-2)),
     VALVE_ZETA => param[valve.zeta] real: param("valve.zeta", None, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
-    VALVE_F_N => param[valve.f_n] real: param("valve.f_n", Some("Hz"), "Natural frequency of the first stage").positive(),
+    // A first stage is a small mechanical resonator: 100 kHz is 120 times the Moog 30's.
+    VALVE_F_N => param[valve.f_n] real: param("valve.f_n", Some("Hz"), "Natural frequency of the first stage").positive().range(Some(0.0), Some(1.0e5)),
     // Industrial linear current amplifier (driver 3): a PI loop like the op-amp driver's
     // but with the slow gains of an off-the-shelf unit. L/Kp = 1.28 ms gives the My-502's
     // 5 ms (2 %) settling; Ki/Kp = R/L cancels the coil pole.
-    INDUSTRIAL_KP => param[industrial.kp] real: param("industrial.Kp", Some("V/A"), "Industrial amplifier proportional gain").non_negative().tunable(),
-    INDUSTRIAL_KI => param[industrial.ki] real: param("industrial.Ki", Some("V/(A.s)"), "Industrial amplifier integral gain").non_negative().tunable(),
-    INDUSTRIAL_SLEW_RATE => param[industrial.slew_rate] real: param("industrial.slew_rate", Some("V/s"), "Industrial amplifier output slew-rate limit (1 V/us)").positive().tunable(),
+    INDUSTRIAL_KP => param[industrial.kp] real: param("industrial.Kp", Some("V/A"), "Industrial amplifier proportional gain").non_negative().range(Some(0.0), Some(MAX_PI_KP)).tunable(),
+    INDUSTRIAL_KI => param[industrial.ki] real: param("industrial.Ki", Some("V/(A.s)"), "Industrial amplifier integral gain").non_negative().range(Some(0.0), Some(MAX_PI_KI)).tunable(),
+    INDUSTRIAL_SLEW_RATE => param[industrial.slew_rate] real: param("industrial.slew_rate", Some("V/s"), "Industrial amplifier output slew-rate limit (1 V/us)").positive().range(Some(0.0), Some(MAX_SLEW_RATE)).tunable(),
     // H-bridge with PWM and a digital PI current loop (driver 4).
     HBRIDGE_F_PWM => param[hbridge.f_pwm] real: param("hbridge.f_pwm", Some("Hz"), "PWM switching frequency (bipolar, centre-aligned)")
         .positive()
@@ -528,12 +567,14 @@ variable_table! {
     // With feed-forward and Ki/Kp = R/L, a 5 mA step at 12 V runs at 100 % duty to ~4.2 mA
     // (the supply limits the slope, as on the paper's bench), then the loop closes with
     // L/Kp = 0.36 ms: 1.9 ms settling of the period-averaged current.
-    HBRIDGE_KP => param[hbridge.kp] real: param("hbridge.Kp", Some("V/A"), "Digital PI proportional gain").non_negative().tunable(),
-    HBRIDGE_KI => param[hbridge.ki] real: param("hbridge.Ki", Some("V/(A.s)"), "Digital PI integral gain").non_negative().tunable(),
+    HBRIDGE_KP => param[hbridge.kp] real: param("hbridge.Kp", Some("V/A"), "Digital PI proportional gain").non_negative().range(Some(0.0), Some(MAX_PI_KP)).tunable(),
+    HBRIDGE_KI => param[hbridge.ki] real: param("hbridge.Ki", Some("V/(A.s)"), "Digital PI integral gain").non_negative().range(Some(0.0), Some(MAX_PI_KI)).tunable(),
     HBRIDGE_FEEDFORWARD => param[hbridge.feedforward] coded: boolean_param("hbridge.feedforward", "Add the feed-forward voltage (R + R_sense)*i_cmd to the digital PI output"),
     // Optional valve travel limits (the paper's linear model has none).
-    VALVE_X_FLAPPER_MAX => param[valve.x_flapper_max] real: param("valve.x_flapper_max", Some("m"), "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative(),
-    VALVE_X_SPOOL_MAX => param[valve.x_spool_max] real: param("valve.x_spool_max", Some("m"), "Spool travel limit, inelastic stop (0: none)").non_negative(),
+    // Travel stops up to 1 cm (flapper) and 10 cm (spool): flapper gaps are tens of um and spool
+    // strokes a few mm; a larger stop is never reached (0 still removes it).
+    VALVE_X_FLAPPER_MAX => param[valve.x_flapper_max] real: param("valve.x_flapper_max", Some("m"), "Flapper travel limit at the nozzles, inelastic stop (0: none)").non_negative().range(Some(0.0), Some(1.0e-2)),
+    VALVE_X_SPOOL_MAX => param[valve.x_spool_max] real: param("valve.x_spool_max", Some("m"), "Spool travel limit, inelastic stop (0: none)").non_negative().range(Some(0.0), Some(0.1)),
     // Cylinder side: inputs and outputs.
     // Up to 1000 bar: beyond the pressure rating of industrial servo hydraulics (the
     // Moog 30 is rated for 3000 psi, 207 bar).
@@ -560,55 +601,78 @@ variable_table! {
     V_PISTON => output[v_piston] real: output("v_piston", "m/s", None, "Piston velocity"),
     F_HYDRAULIC => output[f_hydraulic] real: output("F_hydraulic", "N", None, "Hydraulic force p_A*A_A - p_B*A_B"),
     // Cylinder, load and hydraulic fluid.
-    CYLINDER_BORE => param[cylinder.bore] real: param("cylinder.bore", Some("m"), "Piston (bore) diameter").positive(),
-    CYLINDER_ROD => param[cylinder.rod] real: param("cylinder.rod", Some("m"), "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative(),
+    // Bores and rods up to 1 m (press cylinders).
+    CYLINDER_BORE => param[cylinder.bore] real: param("cylinder.bore", Some("m"), "Piston (bore) diameter").positive().range(Some(0.0), Some(1.0)),
+    CYLINDER_ROD => param[cylinder.rod] real: param("cylinder.rod", Some("m"), "Rod diameter (single rod on the B side; 0 gives equal areas)").non_negative().range(Some(0.0), Some(1.0)),
     CYLINDER_STROKE => param[cylinder.stroke] real: param("cylinder.stroke", Some("m"), "Full stroke; x_piston = 0 at mid-stroke, end stops at +-stroke/2")
         .positive()
         .range(Some(0.0), Some(MAX_STROKE)),
-    CYLINDER_MASS => param[cylinder.mass] real: param("cylinder.mass", Some("kg"), "Moving mass of piston, rod and load; unused when cylinder.port = motion (the host moves the mass)").positive().tunable(),
-    CYLINDER_BETA => param[cylinder.beta] real: param("cylinder.beta", Some("Pa"), "Effective bulk modulus of oil, hoses and walls").positive(),
-    CYLINDER_V_DEAD => param[cylinder.v_dead] real: param("cylinder.V_dead", Some("m3"), "Dead volume of each chamber at its end of stroke (ports, hoses)").positive(),
-    CYLINDER_B_VISCOUS => param[cylinder.b_viscous] real: param("cylinder.b_viscous", Some("N.s/m"), "Viscous friction coefficient").non_negative().tunable(),
-    CYLINDER_F_COULOMB => param[cylinder.f_coulomb] real: param("cylinder.F_coulomb", Some("N"), "Coulomb friction force").non_negative().tunable(),
-    CYLINDER_F_STATIC => param[cylinder.f_static] real: param("cylinder.F_static", Some("N"), "Breakaway (static) friction force: peak of the Stribeck curve").non_negative().tunable(),
-    CYLINDER_V_STRIBECK => param[cylinder.v_stribeck] real: param("cylinder.v_stribeck", Some("m/s"), "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").positive().tunable(),
-    CYLINDER_V_FRICTION_SMOOTH => param[cylinder.v_friction_smooth] real: param("cylinder.v_friction_smooth", Some("m/s"), "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive().tunable(),
-    CYLINDER_K_ENDSTOP => param[cylinder.k_endstop] real: param("cylinder.k_endstop", Some("N/m"), "End-stop contact stiffness beyond +-stroke/2").positive(),
-    CYLINDER_C_ENDSTOP => param[cylinder.c_endstop] real: param("cylinder.c_endstop", Some("N.s/m"), "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative(),
-    CYLINDER_C_LEAK => param[cylinder.c_leak] real: param("cylinder.C_leak", Some("m3/(s.Pa)"), "Internal leakage coefficient across the piston, A to B").non_negative().tunable(),
-    CYLINDER_C_LEAK_EXTERNAL => param[cylinder.c_leak_external] real: param("cylinder.C_leak_external", Some("m3/(s.Pa)"), "External leakage coefficient from each chamber to the drain at p_tank").non_negative().tunable(),
-    VALVE_DP_RATED => param[valve.dp_rated] real: param("valve.dp_rated", Some("Pa"), "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").positive(),
-    VALVE_DP_LAMINAR => param[valve.dp_laminar] real: param("valve.dp_laminar", Some("Pa"), "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive(),
-    HYDRAULICS_P_TANK => param[cylinder.p_tank] real: param("hydraulics.p_tank", Some("Pa"), "Tank (return) pressure, gauge").range(Some(-1.01325e5), None),
-    HYDRAULICS_P_CAVITATION => param[cylinder.p_cavitation] real: param("hydraulics.p_cavitation", Some("Pa"), "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it").range(Some(-1.01325e5), None),
-    HYDRAULICS_DP_CAVITATION_BAND => param[cylinder.dp_cavitation_band] real: param("hydraulics.dp_cavitation_band", Some("Pa"), "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero").positive(),
+    // 1 g (a bare piston) to 1000 t: lighter, the oil column's resonance sqrt(beta A^2/(V m))
+    // leaves the microsecond range.
+    CYLINDER_MASS => param[cylinder.mass] real: param("cylinder.mass", Some("kg"), "Moving mass of piston, rod and load; unused when cylinder.port = motion (the host moves the mass)").range(Some(1.0e-3), Some(1.0e6)).tunable(),
+    // Mineral oil's bulk modulus is 1.5-2 GPa, water's 2.2 GPa; 10 GPa is no fluid's.
+    CYLINDER_BETA => param[cylinder.beta] real: param("cylinder.beta", Some("Pa"), "Effective bulk modulus of oil, hoses and walls").positive().range(Some(0.0), Some(1.0e10)),
+    // Up to 1 m3 (1000 L of hose per chamber).
+    CYLINDER_V_DEAD => param[cylinder.v_dead] real: param("cylinder.V_dead", Some("m3"), "Dead volume of each chamber at its end of stroke (ports, hoses)").positive().range(Some(0.0), Some(1.0)),
+    // Friction: forces up to MAX_FORCE, F_ext's range (a larger one crushes the oil column of
+    // any actuator this model describes); viscous 1e7 N.s/m is 100 kN at 1 cm/s; the Stribeck
+    // and creep speeds between 1 um/s and the 10 m/s no servo cylinder reaches.
+    CYLINDER_B_VISCOUS => param[cylinder.b_viscous] real: param("cylinder.b_viscous", Some("N.s/m"), "Viscous friction coefficient").non_negative().range(Some(0.0), Some(1.0e7)).tunable(),
+    CYLINDER_F_COULOMB => param[cylinder.f_coulomb] real: param("cylinder.F_coulomb", Some("N"), "Coulomb friction force").non_negative().range(Some(0.0), Some(MAX_FORCE)).tunable(),
+    CYLINDER_F_STATIC => param[cylinder.f_static] real: param("cylinder.F_static", Some("N"), "Breakaway (static) friction force: peak of the Stribeck curve").non_negative().range(Some(0.0), Some(MAX_FORCE)).tunable(),
+    CYLINDER_V_STRIBECK => param[cylinder.v_stribeck] real: param("cylinder.v_stribeck", Some("m/s"), "Stribeck velocity: friction falls from F_static to F_coulomb over this speed").range(Some(1.0e-6), Some(MAX_ROD_SPEED)).tunable(),
+    CYLINDER_V_FRICTION_SMOOTH => param[cylinder.v_friction_smooth] real: param("cylinder.v_friction_smooth", Some("m/s"), "Creep velocity scale of tanh(v/v) replacing sign(v) in the friction (no sticking singularity)").positive().range(Some(0.0), Some(MAX_ROD_SPEED)).tunable(),
+    // End stops: steel on steel is ~1e10 N/m; 1e12 N/m and 1e8 N.s/m are beyond any contact.
+    CYLINDER_K_ENDSTOP => param[cylinder.k_endstop] real: param("cylinder.k_endstop", Some("N/m"), "End-stop contact stiffness beyond +-stroke/2").positive().range(Some(0.0), Some(1.0e12)),
+    CYLINDER_C_ENDSTOP => param[cylinder.c_endstop] real: param("cylinder.c_endstop", Some("N.s/m"), "End-stop contact damping (only while penetrating; the contact never pulls)").non_negative().range(Some(0.0), Some(1.0e8)),
+    // Leakage up to MAX_LEAK: the valve's rated flow through a 0.25 bar drop, a piston with no seal.
+    CYLINDER_C_LEAK => param[cylinder.c_leak] real: param("cylinder.C_leak", Some("m3/(s.Pa)"), "Internal leakage coefficient across the piston, A to B").non_negative().range(Some(0.0), Some(MAX_LEAK)).tunable(),
+    CYLINDER_C_LEAK_EXTERNAL => param[cylinder.c_leak_external] real: param("cylinder.C_leak_external", Some("m3/(s.Pa)"), "External leakage coefficient from each chamber to the drain at p_tank").non_negative().range(Some(0.0), Some(MAX_LEAK)).tunable(),
+    // Pressures (gauge) up to 1000 bar, p_supply's range; valves are rated at 1-1000 bar drops.
+    VALVE_DP_RATED => param[valve.dp_rated] real: param("valve.dp_rated", Some("Pa"), "Total rated valve pressure drop (1000 psi): the no-load flow K3*x_s is specified at this drop").range(Some(1.0e5), Some(1.0e8)),
+    VALVE_DP_LAMINAR => param[valve.dp_laminar] real: param("valve.dp_laminar", Some("Pa"), "Port pressure drop below which the orifice flow law is regularised (laminar, finite slope)").positive().range(Some(0.0), Some(1.0e8)),
+    // Tank and cavitation pressures from vacuum to 100 bar of back pressure.
+    HYDRAULICS_P_TANK => param[cylinder.p_tank] real: param("hydraulics.p_tank", Some("Pa"), "Tank (return) pressure, gauge").range(Some(-1.01325e5), Some(1.0e7)),
+    HYDRAULICS_P_CAVITATION => param[cylinder.p_cavitation] real: param("hydraulics.p_cavitation", Some("Pa"), "Cavitation floor (gauge; -0.9e5 = 0.1 bar absolute): chamber pressures never fall below it").range(Some(-1.01325e5), Some(1.0e7)),
+    HYDRAULICS_DP_CAVITATION_BAND => param[cylinder.dp_cavitation_band] real: param("hydraulics.dp_cavitation_band", Some("Pa"), "Pressure band above the floor over which an emptying chamber's bulk modulus fades to zero").positive().range(Some(0.0), Some(1.0e7)),
     // Outer loops (control_mode 1 flow, 2 position): a digital PID producing the current command.
     LOOP_F_SAMPLE => param[outer_loop.f_sample] real: param("loop.f_sample", Some("Hz"), "Sampling rate of the outer flow/position PID (the command is held between samples)")
         .positive()
         .range(Some(0.0), Some(1.0e6)),
-    LOOP_I_MAX => param[outer_loop.i_max] real: param("loop.i_max", Some("A"), "Limit of the current command from the outer loops (rated current)").positive().tunable(),
+    // The outer loops' command within i_ref's range: ten times the rated current.
+    LOOP_I_MAX => param[outer_loop.i_max] real: param("loop.i_max", Some("A"), "Limit of the current command from the outer loops (rated current)").positive().range(Some(0.0), Some(10.0 * VALVE_RATED_CURRENT)).tunable(),
     // Flow defaults, a gentle P on top of the exact feed-forward like the paper's untuned
     // loop: a 2e-4 m3/s step settles in 3.37 ms at 72 V and 6.08 ms at 10 V (180 %; paper
     // 3.3 ms, 6 ms, 181 %). With the feed-forward exact, P alone leaves no steady-state
     // error; an integral adds a slow tail (the area it collects in the transient) and winds
     // up against the 10 V supply limit, where the coil current can only rise with L/R.
-    FLOW_KP => param[outer_loop.flow[0]] real: param("flow.Kp", Some("A.s/m3"), "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)").tunable(),
-    FLOW_KI => param[outer_loop.flow[1]] real: param("flow.Ki", Some("A/m3"), "Flow PID integral gain").tunable(),
-    FLOW_KD => param[outer_loop.flow[2]] real: param("flow.Kd", Some("A.s2/m3"), "Flow PID derivative gain").tunable(),
+    // Outer-loop gains, either sign: MAX_POSITION_KP, MAX_FLOW_KP and the integral and
+    // derivative gains they give (below).
+    FLOW_KP => param[outer_loop.flow[0]] real: param("flow.Kp", Some("A.s/m3"), "Flow PID proportional gain (on Q_ref - Q_valve; feed-forward Q_ref/(K3*K1/Kw) added)").range(Some(-MAX_FLOW_KP), Some(MAX_FLOW_KP))
+        .tunable(),
+    FLOW_KI => param[outer_loop.flow[1]] real: param("flow.Ki", Some("A/m3"), "Flow PID integral gain").range(Some(-MAX_FLOW_KP / MIN_LOOP_TIME), Some(MAX_FLOW_KP / MIN_LOOP_TIME))
+        .tunable(),
+    FLOW_KD => param[outer_loop.flow[2]] real: param("flow.Kd", Some("A.s2/m3"), "Flow PID derivative gain").range(Some(-MAX_FLOW_KP * MAX_LOOP_TIME), Some(MAX_FLOW_KP * MAX_LOOP_TIME))
+        .tunable(),
     // Position defaults: P only (1 mA per mm). The valve-controlled cylinder integrates flow,
     // and a critically centred valve holds a constant load with zero flow only at null spool,
     // so P alone has zero steady-state error; Ki is for leakage or a valve offset. Derivative
     // action excites the hydraulic resonance at these gains.
-    POSITION_KP => param[outer_loop.position[0]] real: param("position.Kp", Some("A/m"), "Position PID proportional gain (on x_ref - x_piston)").tunable(),
-    POSITION_KI => param[outer_loop.position[1]] real: param("position.Ki", Some("A/(m.s)"), "Position PID integral gain").tunable(),
-    POSITION_KD => param[outer_loop.position[2]] real: param("position.Kd", Some("A.s/m"), "Position PID derivative gain").tunable(),
+    POSITION_KP => param[outer_loop.position[0]] real: param("position.Kp", Some("A/m"), "Position PID proportional gain (on x_ref - x_piston)").range(Some(-MAX_POSITION_KP), Some(MAX_POSITION_KP))
+        .tunable(),
+    POSITION_KI => param[outer_loop.position[1]] real: param("position.Ki", Some("A/(m.s)"), "Position PID integral gain").range(Some(-MAX_POSITION_KP / MIN_LOOP_TIME), Some(MAX_POSITION_KP / MIN_LOOP_TIME))
+        .tunable(),
+    POSITION_KD => param[outer_loop.position[2]] real: param("position.Kd", Some("A.s/m"), "Position PID derivative gain").range(Some(-MAX_POSITION_KP * MAX_LOOP_TIME), Some(MAX_POSITION_KP * MAX_LOOP_TIME))
+        .tunable(),
     // Relief valves of the cylinder (appended: references never move). One per chamber, to
     // tank; 80 bar is 16 % above the 1000 psi supply, so they stay shut in normal operation
     // (docs/model.md) and cap what braking a fast piston with the valve does to the chambers.
     RELIEF_P_CRACK => param[cylinder.relief_p_crack] real: param("relief.p_crack", Some("Pa"), "Cracking pressure of the chamber relief valves, above p_tank (0: no relief valves); must exceed p_supply - p_tank")
-        .non_negative(),
-    RELIEF_DP_OVERRIDE => param[cylinder.relief_dp_override] real: param("relief.dp_override", Some("Pa"), "Pressure override: rise above the cracking pressure at which a relief valve passes its rated flow").positive(),
-    RELIEF_Q_RATED => param[cylinder.relief_q_rated] real: param("relief.Q_rated", Some("m3/s"), "Rated flow of each relief valve, reached at relief.p_crack + relief.dp_override").positive(),
+        .non_negative()
+        .range(Some(0.0), Some(1.0e8)),
+    RELIEF_DP_OVERRIDE => param[cylinder.relief_dp_override] real: param("relief.dp_override", Some("Pa"), "Pressure override: rise above the cracking pressure at which a relief valve passes its rated flow").positive().range(Some(0.0), Some(1.0e8)),
+    // 1 m3/s (60,000 L/min) is beyond any relief valve.
+    RELIEF_Q_RATED => param[cylinder.relief_q_rated] real: param("relief.Q_rated", Some("m3/s"), "Rated flow of each relief valve, reached at relief.p_crack + relief.dp_override").positive().range(Some(0.0), Some(1.0)),
     // Accuracy against speed (appended). 1e-7 keeps every output within ~1e-6 of its range
     // of a tight reference (docs/benchmark.md); looser settings are for hardware-in-the-loop
     // budgets, tighter ones for references. Past 1e-3 the error control means nothing.
@@ -854,7 +918,7 @@ mod tests {
     fn check_names_variable_and_range() {
         let l = &VARIABLES[vr::COIL_L];
         let msg = l.check(-1.0).unwrap_err();
-        assert!(msg.contains("coil.L") && msg.contains("(0, +inf)"), "{msg}");
+        assert!(msg.contains("coil.L") && msg.contains("[0.0001, 1000]"), "{msg}");
         assert!(l.check(f64::NAN).unwrap_err().contains("finite"));
     }
 

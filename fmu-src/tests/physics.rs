@@ -323,10 +323,13 @@ fn travel_limits_hold_flapper_and_spool_and_release_them() {
 
 #[test]
 fn absurd_but_finite_parameters_refuse_the_step_quickly() {
-    // A coil of 1e-290 H, or a step of 1e300 s, puts |A h| where the matrix exponential's
-    // power estimates overflow: its scaling-and-squaring then loops (nearly) forever or
-    // wraps into garbage. The FMU refuses such a step at once and keeps its state.
-    for (l, h) in [(1e-290, 1e-4), (start(vr::COIL_L), 1e300)] {
+    // A step of 1e300 s (or a coil of 1e-290 H, which coil.L's range now refuses at the set)
+    // puts |A h| where the matrix exponential's power estimates overflow: its
+    // scaling-and-squaring then loops (nearly) forever or wraps into garbage. The FMU refuses
+    // such a step at once and keeps its state.
+    let refused = Model::new().set(vr::COIL_L, 1e-290).unwrap_err();
+    assert!(refused.contains("coil.L") && refused.contains("allowed range"), "{refused}");
+    for (l, h) in [(start(vr::COIL_L), 1e300), (start(vr::COIL_L), 1e30)] {
         let mut m = Model::new();
         m.set(vr::COIL_L, l).unwrap();
         m.initialize().unwrap();
