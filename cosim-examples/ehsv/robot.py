@@ -751,6 +751,7 @@ def scene_head(name: str, texrepeat: int, light: str, light_dir: str, floor: flo
     loop, the look (checker floor, sky, one light) and the floor they stand on."""
     return f"""<mujoco model="{name}">
   <compiler angle="radian"/>
+  <extension><plugin plugin="ehsv.actuator"/></extension>
   <option timestep="1e-4" integrator="Euler"/>
   <visual><global offwidth="800" offheight="800"/><quality shadowsize="2048"/></visual>
   <asset>
