@@ -56,7 +56,10 @@ def mjcf() -> str:
     # the cylinders beside the links, on the camera's side (-y)
     hip_base, hip_end = robot.cylinder_sites("hip_cyl", LEVERS[0], "y", side=-0.05)
     knee_base, knee_end = robot.cylinder_sites("knee_cyl", LEVERS[1], "y", joint_pos=(0, 0, -L1), side=-0.045)
-    return f"""{robot.scene_head("hydraulic_leg", texrepeat=8, light="0.5 -1.5 2.5", light_dir="-0.2 0.6 -1", floor=2)}
+    head = robot.scene_head(
+        "hydraulic_leg", texrepeat=8, light="0.5 -1.5 2.5", light_dir="-0.2 0.6 -1", floor=2
+    )
+    return f"""{head}
     <geom name="rail" type="cylinder" fromto="-0.16 0.06 0 -0.16 0.06 1.1" size="0.012"
           rgba=".5 .5 .5 1"/>
     <body name="trunk" pos="0 0 0">

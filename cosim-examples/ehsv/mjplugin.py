@@ -114,12 +114,12 @@ def mjcf_text(
         text = _PLUGIN_ACTUATOR.sub(r'<general name="\1" tendon="\2" gainprm="1" ctrllimited="false"/>', text)
     elif config:
         extra = "".join(f'\n        <config key="{k}" value="{v}"/>' for k, v in config.items())
-        text = _PLUGIN_ACTUATOR.sub(
-            lambda m: (
-                f'<plugin name="{m[1]}" plugin="{PLUGIN_NAME}" tendon="{m[2]}">{m[3].rstrip()}{extra}\n    </plugin>'
-            ),
-            text,
-        )
+
+        def add(m):
+            head = f'<plugin name="{m[1]}" plugin="{PLUGIN_NAME}" tendon="{m[2]}">'
+            return f"{head}{m[3].rstrip()}{extra}\n    </plugin>"
+
+        text = _PLUGIN_ACTUATOR.sub(add, text)
     return text
 
 
