@@ -20,7 +20,7 @@ be made (MUJOCO_GL=egl by default, or osmesa; scripts/setup-gl.sh installs them)
 out/hydraulic_leg_render.png (frames of the run).
 
     .venv/bin/python cosim-examples/hydraulic_leg.py [--duration 6] [--short]
-        [--actuator auto|fmu|stand-in] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
+        [--actuator plugin|fmu] [--timestep 1e-4] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
 
 --method sets the FMU's solver.method; both runs the same scenario with exact, then
 fixed_cost, and prints their real-time factors and figures side by side.

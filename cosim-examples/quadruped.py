@@ -18,7 +18,7 @@ out/quadruped.png (base height, roll, pitch, the 12 rod forces) and, where a GL 
 can be made, out/quadruped_render.png.
 
     .venv/bin/python cosim-examples/quadruped.py [--duration 8.5] [--short]
-        [--actuator auto|fmu|stand-in] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
+        [--actuator plugin|fmu] [--timestep 1e-4] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
 
 --method sets the FMU's solver.method; both runs the same scenario with exact, then
 fixed_cost, and prints their real-time factors and figures side by side.
