@@ -409,7 +409,8 @@ class Timing:
             f"{t_sim / self.wall:.2f} (> 1 is faster than real time); per step {self.wall * us:.1f} us = "
         )
         if kind == "plugin":
-            return head + f"MuJoCo with {n_act} plugin actuators {self.mujoco * us:.1f} + Python {self.python * us:.1f}"
+            inside = f"MuJoCo with {n_act} plugin actuators {self.mujoco * us:.1f}"
+            return head + f"{inside} + Python {self.python * us:.1f}"
         return head + (
             f"MuJoCo {self.mujoco * us:.1f} + actuators ({n_act} x set/doStep/get) "
             f"{self.actuators * us:.1f} + Python {self.python * us:.1f}"
