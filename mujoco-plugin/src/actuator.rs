@@ -95,6 +95,8 @@ pub struct Actuator {
     held: Vec<f64>,
     pending: Option<Pending>,
     pub layout: Layout,
+    /// The state bytes' buffer (reused: no allocation in a step).
+    bytes: Vec<u8>,
 }
 
 impl Actuator {
@@ -121,9 +123,10 @@ impl Actuator {
             held: Vec::new(),
             pending: None,
             layout,
+            bytes,
         };
         let mut slots = vec![0.0; layout.slots()];
-        actuator.write_slots(actuator.start.outputs().f_rod, &mut slots);
+        actuator.write_slots(actuator.start.rod_force_mean(), &mut slots);
         actuator.start_slots = slots.clone();
         actuator.held = slots;
         Ok(actuator)
@@ -138,7 +141,7 @@ impl Actuator {
     }
 
     /// Writes the outputs (F_rod = `force`) and the state bytes of `self.physics`.
-    fn write_slots(&self, force: f64, slots: &mut [f64]) {
+    fn write_slots(&mut self, force: f64, slots: &mut [f64]) {
         let mut values = self.config.values;
         let mut outputs = self.physics.outputs();
         outputs.f_rod = force;
@@ -146,10 +149,10 @@ impl Actuator {
         for (slot, index) in slots.iter_mut().zip(output_indices()) {
             *slot = values[index];
         }
-        let mut bytes = Vec::with_capacity(self.layout.state_bytes);
-        self.physics.write_bytes(&mut bytes);
-        slots[self.layout.length_slot()] = bytes.len() as f64;
-        pack(&bytes, &mut slots[self.layout.length_slot() + 1..]);
+        self.bytes.clear();
+        self.physics.write_bytes(&mut self.bytes);
+        slots[self.layout.length_slot()] = self.bytes.len() as f64;
+        pack(&self.bytes, &mut slots[self.layout.length_slot() + 1..]);
     }
 
     /// Rebuilds the physics from `slots` (a state set under it).
@@ -239,7 +242,7 @@ impl Actuator {
             let offset = j as f64 * h;
             inputs.x_rod = x + host.velocity * offset;
             self.physics.step(&inputs, host.time + offset, h)?;
-            sum += self.physics.outputs().f_rod;
+            sum += self.physics.rod_force_mean();
         }
         Ok(sum / n)
     }
@@ -334,5 +337,44 @@ mod tests {
             b.step(&inputs, j as f64 * 1e-4, 1e-4).unwrap();
         }
         assert_eq!(a.physics.outputs().p_a.to_bits(), b.outputs().p_a.to_bits());
+    }
+}
+
+#[cfg(test)]
+mod overhead {
+    use super::*;
+    use crate::config::parse;
+    use std::time::Instant;
+
+    /// The plugin's bookkeeping against the bare physics step (prints; run with --ignored).
+    #[test]
+    #[ignore]
+    fn plugin_overhead_per_step() {
+        let config = parse(|key| (key == "control_mode").then(|| "position".into())).unwrap();
+        let mut a = Actuator::new(config).unwrap();
+        let mut bare = a.physics.clone();
+        let mut slots = a.start_slots().to_vec();
+        let n = 20000;
+        let x_ref = |k: usize| 0.005 * (k as f64 * 1e-4 * 12.0).sin();
+        let w = Instant::now();
+        for k in 0..n {
+            let inputs = Inputs { x_ref: x_ref(k), ..a.base };
+            bare.step(&inputs, k as f64 * 1e-4, 1e-4).unwrap();
+        }
+        let physics = w.elapsed().as_secs_f64() / n as f64;
+        let w = Instant::now();
+        for k in 0..n {
+            let host = HostStep {
+                time: k as f64 * 1e-4,
+                timestep: 1e-4,
+                length: 0.0,
+                velocity: 0.0,
+                ctrl: x_ref(k),
+            };
+            a.compute(&slots, &host).unwrap();
+            a.commit(&mut slots);
+        }
+        let plugin = w.elapsed().as_secs_f64() / n as f64;
+        println!("plugin {:.2} us, physics {:.2} us per step", plugin * 1e6, physics * 1e6);
     }
 }
