@@ -88,7 +88,16 @@ def mjcf() -> str:
     {robot.cylinder_tendon("knee_cyl")}
   </tendon>
 {mjplugin.actuator_block(JOINTS, LEVERS, HYD)}
+{stand_key()}
 </mujoco>"""
+
+
+def stand_key() -> str:
+    """The keyframe "stand": the trunk at H_STAND, the foot under the hip, the rods' commands
+    holding it (open it in the viewer: Simulation > Key > Load)."""
+    q = joint_command(H_STAND)
+    x_ref = LeverSet(LEVERS).rod(np.array(q))[0]
+    return mjplugin.keyframe("stand", (H_STAND, *q), x_ref)
 
 
 @dataclass(frozen=True)

@@ -129,7 +129,18 @@ def mjcf() -> str:
     {tendons}
   </tendon>
 {mjplugin.actuator_block(JOINTS, LEVERS, HYD)}
+{stand_key()}
 </mujoco>"""
+
+
+def stand_key() -> str:
+    """The keyframe "stand": the trunk level at H_STAND, every foot under its hip, the rods'
+    commands holding it (open it in the viewer: Simulation > Key > Load)."""
+    q = np.zeros(len(JOINTS))
+    for i, g in enumerate(GEOMETRY):
+        q[3 * i + 1 : 3 * i + 3] = robot.leg_ik(H_STAND - FOOT_R, 0.0, L1, L2, g.bend)
+    x_ref = LeverSet(LEVERS).rod(q)[0]
+    return mjplugin.keyframe("stand", (0.0, 0.0, H_STAND, 1.0, 0.0, 0.0, 0.0, *q), x_ref)
 
 
 @dataclass(frozen=True)

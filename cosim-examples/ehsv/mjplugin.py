@@ -84,11 +84,22 @@ def actuator_block(joints: Sequence[str], levers: Sequence[Lever], hyd: Hydrauli
     cylinder between its pivots, length L(q)) with length_mid = L(q_mid), the position
     loop, and ``hyd``'s values under the FMU's variable names."""
     lines = []
+    half = hyd.stroke / 2
     for j, lever in zip(joints, levers, strict=True):
         config = {"control_mode": "position", **hyd.fmu_values(), "length_mid": lever.L_mid}
         keys = "".join(f'\n        <config key="{k}" value="{_text(v)}"/>' for k, v in config.items())
-        lines.append(f'    <plugin name="{j}" plugin="{PLUGIN_NAME}" tendon="{j}_cyl">{keys}\n    </plugin>')
+        head = f'<plugin name="{j}" plugin="{PLUGIN_NAME}" tendon="{j}_cyl" ctrlrange="{-half:g} {half:g}">'
+        lines.append(f"    {head}{keys}\n    </plugin>")
     return "  <actuator>\n" + "\n".join(lines) + "\n  </actuator>"
+
+
+def keyframe(name: str, qpos: Sequence[float], ctrl: Sequence[float]) -> str:
+    """A keyframe (the viewer's Simulation > Key): a pose and its rod commands."""
+
+    def text(v):
+        return " ".join(repr(float(x)) for x in v)
+
+    return f'  <keyframe>\n    <key name="{name}" qpos="{text(qpos)}" ctrl="{text(ctrl)}"/>\n  </keyframe>'
 
 
 def _text(value) -> str:
@@ -98,7 +109,8 @@ def _text(value) -> str:
 
 EXTENSION = f'  <extension><plugin plugin="{PLUGIN_NAME}"/></extension>'
 _PLUGIN_ACTUATOR = re.compile(
-    r'<plugin name="([^"]+)" plugin="' + re.escape(PLUGIN_NAME) + r'" tendon="([^"]+)">(.*?)</plugin>', re.S
+    r'<plugin name="([^"]+)" plugin="' + re.escape(PLUGIN_NAME) + r'" tendon="([^"]+)"([^>]*)>(.*?)</plugin>',
+    re.S,
 )
 
 
@@ -116,8 +128,8 @@ def mjcf_text(
         extra = "".join(f'\n        <config key="{k}" value="{v}"/>' for k, v in config.items())
 
         def add(m):
-            head = f'<plugin name="{m[1]}" plugin="{PLUGIN_NAME}" tendon="{m[2]}">'
-            return f"{head}{m[3].rstrip()}{extra}\n    </plugin>"
+            head = f'<plugin name="{m[1]}" plugin="{PLUGIN_NAME}" tendon="{m[2]}"{m[3]}>'
+            return f"{head}{m[4].rstrip()}{extra}\n    </plugin>"
 
         text = _PLUGIN_ACTUATOR.sub(add, text)
     return text
@@ -140,7 +152,7 @@ def load_model(
 def length_mid(path: Path) -> dict[str, float]:
     """Each plugin actuator's length_mid in the file (by actuator name)."""
     out = {}
-    for name, _, body in _PLUGIN_ACTUATOR.findall(Path(path).read_text()):
+    for name, _, _, body in _PLUGIN_ACTUATOR.findall(Path(path).read_text()):
         m = re.search(r'key="length_mid" value="([^"]+)"', body)
         out[name] = float(m[1]) if m else 0.0
     return out

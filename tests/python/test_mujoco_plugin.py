@@ -194,3 +194,21 @@ def test_leg_stands_at_the_documented_host_timesteps(timestep):
     assert np.all(np.isfinite(r.rec["F"]))
     assert s["hold_err_max"] < 3e-3, s["hold_err_max"]
     assert s["p_max"] < r.hyd.p_crack + r.hyd.dp_override
+
+
+@pytest.mark.parametrize("example", [hydraulic_leg, quadruped])
+def test_mjcf_files_are_the_examples_robots(example):
+    """cosim-examples/mjcf/*.xml are what the examples' mjcf() writes (levers, tendons,
+    actuators, keyframe): regenerate them with it after changing the geometry."""
+    assert example.MJCF.read_text() == example.mjcf().lstrip() + "\n"
+
+
+@pytest.mark.parametrize("example, height", [(hydraulic_leg, 0), (quadruped, 2)])
+def test_the_stand_keyframe_stands(example, height):
+    """What the viewer shows after Simulation > Key > Load: the robot holds its stance."""
+    model = mjplugin.load_model(example.MJCF)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("stand").id)
+    for _ in range(2000):
+        mujoco.mj_step(model, data)
+    assert data.qpos[height] == pytest.approx(example.H_STAND, abs=0.01)
