@@ -6,7 +6,9 @@ Each robot stands and squats with its own command (trunk height 0.55 m, down by
 inverse kinematics and levers as x_ref of each rod), open loop from one initial state.
 Prints robot-seconds per wall-second with 1 thread and with one per core, then the same
 for the quadruped with MuJoCo's own ``position`` actuators on the same tendons (nearly
-free), and their ratio; the lowest trunk height of each robot says it stood.
+free), and their ratio; the same per CPU-second (the process's CPU time over all threads:
+on a machine shared with other work the wall figures and the scaling vary with its load,
+the CPU ones much less); the lowest trunk height of all robots says they stood.
 
     .venv/bin/python cosim-examples/rollout.py [--n 8] [--duration 0.5] [--timestep 1e-4]
         [--substep 1e-4] [--method fixed_cost|exact|both]
@@ -74,20 +76,24 @@ def initial_state(model):
     return state
 
 
-def rate(model, state, control, threads: int, repeat: int = 1) -> tuple[float, np.ndarray]:
-    """Robot-seconds per wall-second of the rollout (best of ``repeat``) and its states."""
+def rate(model, state, control, threads: int, repeat: int = 1) -> tuple[float, float, np.ndarray]:
+    """Robot-seconds per wall-second and per CPU-second (all threads' CPU time: what the
+    machine's other load does not change) of the rollout (best of ``repeat``), and its
+    states."""
     import mujoco
     from mujoco import rollout
 
     datas = [mujoco.MjData(model) for _ in range(threads)]
     n, nstep = control.shape[:2]
-    best = np.inf
+    best = cpu = np.inf
     out = None
     for _ in range(repeat):
-        w0 = time.perf_counter()
+        w0, c0 = time.perf_counter(), time.process_time()
         out, _ = rollout.rollout(model, datas, state, control, nstep=nstep)
         best = min(best, time.perf_counter() - w0)
-    return n * nstep * model.opt.timestep / best, out
+        cpu = min(cpu, time.process_time() - c0)
+    simulated = n * nstep * model.opt.timestep
+    return simulated / best, simulated / cpu, out
 
 
 def run(n: int, duration: float, timestep: float, substep: float, method: str, threads: list[int]) -> dict:
@@ -100,10 +106,10 @@ def run(n: int, duration: float, timestep: float, substep: float, method: str, t
     lmid = np.array([mjplugin.length_mid(quadruped.MJCF)[j] for j in quadruped.JOINTS])
     out = {}
     for nt in threads:
-        r_h, states = rate(hyd, initial_state(hyd), x_ref, nt)
-        r_p, _ = rate(pos, initial_state(pos), x_ref + lmid, nt, repeat=3)
+        r_h, c_h, states = rate(hyd, initial_state(hyd), x_ref, nt)
+        r_p, c_p, _ = rate(pos, initial_state(pos), x_ref + lmid, nt, repeat=3)
         z = states[:, :, 1 + 2]  # state = time, qpos...: qpos[2] the trunk height
-        out[nt] = (r_h, r_p, float(z.min()))
+        out[nt] = (r_h, r_p, c_h, c_p, float(z.min()))
     return out
 
 
@@ -123,13 +129,18 @@ def main(argv=None) -> int:
         f"{cores} cores; robot-s per wall-s (hydraulic = 12 ehsv.actuator plugins; position = MuJoCo's "
         f"position actuators, kp {POSITION_KP:g})"
     )
-    head = ("method", "threads", "hydraulic", "position", "ratio", "lowest trunk, m")
-    print(" ".join(f"{h:>{w}}" for h, w in zip(head, (10, 7, 10, 10, 7, 16), strict=True)))
+    print(f"{'':>18} {'per wall-second':>29} {'per CPU-second':>29}")
+    rates = ("hydraulic", "position", "ratio")
+    head = ("method", "threads", *rates, *rates, "lowest z, m")
+    print(" ".join(f"{h:>{w}}" for h, w in zip(head, (10, 7, 10, 10, 7, 10, 10, 7, 12), strict=True)))
     methods = ("exact", "fixed_cost") if args.method == "both" else (args.method,)
     for method in methods:
         res = run(args.n, args.duration, args.timestep, args.substep, method, threads)
-        for nt, (r_h, r_p, z) in res.items():
-            print(f"{method:>10} {nt:>7} {r_h:>10.2f} {r_p:>10.1f} {r_h / r_p:>7.3f} {z:>16.3f}")
+        for nt, (r_h, r_p, c_h, c_p, z) in res.items():
+            print(
+                f"{method:>10} {nt:>7} {r_h:>10.2f} {r_p:>10.1f} {r_h / r_p:>7.3f} "
+                f"{c_h:>10.2f} {c_p:>10.1f} {c_h / c_p:>7.3f} {z:>12.3f}"
+            )
         if len(res) > 1:
             print(f"{'':>10} scaling {threads[-1]} threads / 1: {res[threads[-1]][0] / res[1][0]:.2f}x")
     return 0
