@@ -1,5 +1,5 @@
 //! One plugin actuator: an EhsvActuator with the motion port, whose whole state lives in a
-//! slice of mjData's `plugin_state` ([`Actuator::slots`]); the [`Physics`] held here is a
+//! slice of mjData's `plugin_state` ([`Layout`]); the [`Physics`] held here is a
 //! cache of that state, rebuilt from the slots whenever they change under it (reset, copy,
 //! `mj_setState`, a rollout's initial state).
 //!
