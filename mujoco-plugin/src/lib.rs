@@ -223,7 +223,9 @@ fn register() {
     unsafe { (api.register_plugin)(&plugin) };
 }
 
-/// The library's constructor (what mjPLUGIN_LIB_INIT expands to in C).
+/// The library's constructor (what mjPLUGIN_LIB_INIT expands to in C with GCC/Clang): an
+/// ELF `.init_array` entry; Linux only (the offsets of `ffi` are those of Linux's LP64).
+#[cfg(target_os = "linux")]
 #[used]
 #[link_section = ".init_array"]
 static REGISTER: extern "C" fn() = {
