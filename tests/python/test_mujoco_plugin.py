@@ -212,3 +212,13 @@ def test_the_stand_keyframe_stands(example, height):
     for _ in range(2000):
         mujoco.mj_step(model, data)
     assert data.qpos[height] == pytest.approx(example.H_STAND, abs=0.01)
+
+
+@pytest.mark.parametrize("timestep", [1e-3, 2e-3])
+def test_leg_hops_and_lands_at_long_host_timesteps(timestep):
+    """The whole leg run (stand, squat, hop, land) at the longer documented timesteps: the
+    leg hops and ends standing on its command (the host-timestep table's "stable")."""
+    host_timestep = pytest.importorskip("host_timestep")
+    r = hydraulic_leg.run(kind="plugin", render=False, timestep=timestep)
+    assert host_timestep.leg_stood(r)
+    assert r.summary()["hop_trunk_rise"] > 0.03
