@@ -4,7 +4,9 @@ timestep 1e-4, 5e-4, 1e-3 and 2e-3 s, the plugin sub-stepping at 1e-4 s. Prints,
 timestep, whether the robot stayed up and how far it departs from the 1e-4 s run: the
 largest difference of the trunk height (mm), of the joint angles (deg) and of the rod
 forces (N, and % of the 1e-4 s run's force range), on a common 1 kHz time grid (the
-2e-3 s runs on their own 2 ms grid); and the wall time of each run.
+2e-3 s runs on their own 2 ms grid); dF: the largest change of a rod force between
+successive 2 ms points while the robot stands still after standing up (chatter: a force
+that alternates from step to step); and the wall time of each run.
 
     .venv/bin/python cosim-examples/host_timestep.py [--robot leg|quadruped|both]
         [--short] [--method exact|fixed_cost]
@@ -46,6 +48,23 @@ def departures(ref, run) -> dict:
     }
 
 
+def chatter(r, window: tuple[float, float]) -> float:
+    """The largest change of a rod force between successive 2 ms points while the robot
+    stands still (``window``, s): 0 for a smooth force, large where it alternates from step
+    to step."""
+    t = np.arange(window[0], window[1], 2e-3)
+    f = _on(t, r.t, r.rec["F"])
+    return float(np.abs(np.diff(f, axis=0)).max()) if len(t) > 1 else float("nan")
+
+
+def hold_window(r) -> tuple[float, float]:
+    """The stance after standing up, before the squat or the trot (the end if none)."""
+    p = r.plan
+    nxt = getattr(p, "squat", None) or getattr(p, "trot", None)
+    end = nxt[0] if nxt else r.t_end
+    return p.t_up[1] + 0.3 if end > p.t_up[1] + 0.4 else 0.3, end
+
+
 def table(name: str, run, short: bool, method: str, stood) -> list[dict]:
     rows = []
     ref = None
@@ -56,10 +75,11 @@ def table(name: str, run, short: bool, method: str, stood) -> list[dict]:
         ok = stood(r) and all(np.isfinite(r.rec["F"]).ravel())
         ref = ref or r
         row = {"robot": name, "h": h, "stable": ok, "wall": wall, **departures(ref, r)}
+        row["chatter"] = chatter(r, hold_window(r))
         rows.append(row)
         print(
             f"{name:>10} {h:>7.0e} {'yes' if ok else 'NO':>7} {row['z_mm']:>9.2f} {row['q_deg']:>9.3f} "
-            f"{row['F_N']:>9.1f} {row['F_pct']:>7.2f} {wall:>7.2f}",
+            f"{row['F_N']:>9.1f} {row['F_pct']:>7.2f} {row['chatter']:>8.1f} {wall:>7.2f}",
             flush=True,
         )
     return rows
@@ -82,8 +102,8 @@ def main(argv=None) -> int:
     ap.add_argument("--method", choices=("exact", "fixed_cost"), default="exact")
     args = ap.parse_args(argv)
     print(f"solver.method = {args.method}, plugin substep 1e-4 s; departures from the 1e-4 s run")
-    head = ("robot", "h, s", "stable", "z, mm", "q, deg", "F, N", "F, %", "wall, s")
-    print(" ".join(f"{h:>{w}}" for h, w in zip(head, (10, 7, 7, 9, 9, 9, 7, 7), strict=True)))
+    head = ("robot", "h, s", "stable", "z, mm", "q, deg", "F, N", "F, %", "dF, N", "wall, s")
+    print(" ".join(f"{h:>{w}}" for h, w in zip(head, (10, 7, 7, 9, 9, 9, 7, 8, 7), strict=True)))
     if args.robot in ("leg", "both"):
         table("leg", hydraulic_leg.run, args.short, args.method, leg_stood)
     if args.robot in ("quadruped", "both"):
