@@ -73,6 +73,11 @@ fn unpack(slots: &[f64], n: usize) -> Result<Vec<u8>, String> {
     Ok(bytes)
 }
 
+/// Whether two slices hold the same doubles bit for bit (NaN and -0 included).
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 /// The step computed for the host's current step, not yet taken into the slots.
 #[derive(Clone, Copy)]
 struct Pending {
@@ -203,7 +208,7 @@ impl Actuator {
     /// asked again for the same host step, it returns the same force without stepping.
     pub fn compute(&mut self, slots: &[f64], host: &HostStep) -> Result<f64, String> {
         let key = host.key();
-        if slots != self.held.as_slice() {
+        if !same_bits(slots, &self.held) {
             self.restore(slots)?;
         } else if let Some(pending) = self.pending {
             if pending.key == key {
