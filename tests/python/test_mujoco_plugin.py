@@ -222,3 +222,24 @@ def test_leg_hops_and_lands_at_long_host_timesteps(timestep):
     r = hydraulic_leg.run(kind="plugin", render=False, timestep=timestep)
     assert host_timestep.leg_stood(r)
     assert r.summary()["hop_trunk_rise"] > 0.03
+
+
+def test_a_rod_beyond_its_travel_gives_no_force_and_one_warning():
+    """A transmission that puts the rod beyond the stroke and the end stop's deepest
+    penetration: the step is refused (force 0, state held), said once, no crash."""
+    warnings = []
+    mujoco.set_mju_user_warning(warnings.append)
+    try:
+        model = mujoco.MjModel.from_xml_string(MINIMAL.format(config=""))
+        data = mujoco.MjData(model)
+        state = data.plugin_state.copy()
+        data.qpos[0] = 0.2  # 200 mm: beyond the 80 mm stroke's end
+        for _ in range(5):
+            mujoco.mj_step(model, data)
+            data.qvel[0] = 0.0
+            data.qpos[0] = 0.2
+    finally:
+        mujoco.set_mju_user_warning(None)
+    assert data.actuator_force[0] == 0.0
+    assert np.array_equal(_bits(data.plugin_state), _bits(state))
+    assert len([w for w in warnings if "ehsv.actuator" in w]) == 1, warnings
