@@ -20,7 +20,7 @@ be made (MUJOCO_GL=egl by default, or osmesa; scripts/setup-gl.sh installs them)
 out/hydraulic_leg_render.png (frames of the run).
 
     .venv/bin/python cosim-examples/hydraulic_leg.py [--duration 6] [--short]
-        [--actuator auto|fmu|stand-in] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
+        [--actuator plugin|fmu] [--timestep 1e-4] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
 
 --method sets the FMU's solver.method; both runs the same scenario with exact, then
 fixed_cost, and prints their real-time factors and figures side by side.
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehsv import cli, robot
+from ehsv import cli, mjplugin, robot
 from ehsv.robot import Hydraulics, Lever, LeverSet, smooth
 
 L1 = L2 = 0.35  # thigh, shank (m)
@@ -49,14 +49,17 @@ LEVERS = (
     Lever(d=0.25, r=0.045, q_mid=math.radians(95), sign=-1, base_angle=0.0),  # knee
 )
 JOINTS = ("hip", "knee")
+MJCF = mjplugin.MJCF_DIR / "hydraulic_leg.xml"
 
 
 def mjcf() -> str:
     # the cylinders beside the links, on the camera's side (-y)
     hip_base, hip_end = robot.cylinder_sites("hip_cyl", LEVERS[0], "y", side=-0.05)
     knee_base, knee_end = robot.cylinder_sites("knee_cyl", LEVERS[1], "y", joint_pos=(0, 0, -L1), side=-0.045)
-    return f"""
-{robot.scene_head("hydraulic_leg", texrepeat=8, light="0.5 -1.5 2.5", light_dir="-0.2 0.6 -1", floor=2)}
+    head = robot.scene_head(
+        "hydraulic_leg", texrepeat=8, light="0.5 -1.5 2.5", light_dir="-0.2 0.6 -1", floor=2
+    )
+    return f"""{head}
     <geom name="rail" type="cylinder" fromto="-0.16 0.06 0 -0.16 0.06 1.1" size="0.012"
           rgba=".5 .5 .5 1"/>
     <body name="trunk" pos="0 0 0">
@@ -84,7 +87,17 @@ def mjcf() -> str:
     {robot.cylinder_tendon("hip_cyl")}
     {robot.cylinder_tendon("knee_cyl")}
   </tendon>
+{mjplugin.actuator_block(JOINTS, LEVERS, HYD)}
+{stand_key()}
 </mujoco>"""
+
+
+def stand_key() -> str:
+    """The keyframe "stand": the trunk at H_STAND, the foot under the hip, the rods' commands
+    holding it (open it in the viewer: Simulation > Key > Load)."""
+    q = joint_command(H_STAND)
+    x_ref = LeverSet(LEVERS).rod(np.array(q))[0]
+    return mjplugin.keyframe("stand", (H_STAND, *q), x_ref)
 
 
 @dataclass(frozen=True)
@@ -243,19 +256,26 @@ class LegRun:
 def run(
     duration: float = 6.0,
     short: bool = False,
-    kind: str = "auto",
+    kind: str = "plugin",
     version: str = "fmi2",
     render: bool = True,
-    hyd: Hydraulics = HYD,
     method: str = "exact",
+    timestep: float | None = None,
+    substep: float | None = None,
 ) -> LegRun:
+    """The run on MJCF (``MJCF``) with ``kind`` "plugin" actuators or "fmu" (the reference:
+    the FMU through the same tendons); ``timestep`` replaces MuJoCo's 1e-4 s (the plugin
+    then sub-steps at ``substep``, default 1e-4 s)."""
     if render:
         robot.gl_backend()  # before mujoco's import
     import mujoco
 
     plan = Plan.short() if short else Plan.full(duration)
     t_end = 0.6 if short else duration
-    model = mujoco.MjModel.from_xml_string(mjcf())
+    config = {"solver.method": method}
+    if substep is not None:
+        config["substep"] = repr(substep)
+    model = mjplugin.load_model(MJCF, kind, timestep, config)
     data = mujoco.MjData(model)
     levers = LeverSet(LEVERS)
     jid = {j: model.joint(j).qposadr[0] for j in ("rail", *JOINTS)}
@@ -263,8 +283,10 @@ def run(
     data.qpos[jid["rail"]] = H_SIT
     data.qpos[jid["hip"]], data.qpos[jid["knee"]] = q0
     mujoco.mj_forward(model, data)
-    x0 = levers.rod(np.array(q0))[0]
-    bank, line = robot.make_bank(kind, len(LEVERS), hyd, x0, x0, version, method)
+    bank, line = None, f"actuators: {len(LEVERS)} x ehsv.actuator MuJoCo plugin (solver.method = {method})"
+    if kind == "fmu":
+        zero = np.zeros(len(LEVERS))
+        bank, line = robot.make_bank("fmu", len(LEVERS), HYD, zero, zero, version, method)
 
     foot = model.site("foot").id
     ten_adr = [model.tendon(n).id for n in ("hip_cyl", "knee_cyl")]
@@ -279,15 +301,19 @@ def run(
             *(d.ten_length[ten_adr] - L_mid),
         )
 
-    sim = robot.Cosim(model, data, JOINTS, levers, bank, controller)
+    sim = mjplugin.MjcfCosim(model, data, JOINTS, levers, controller, mjplugin.length_mid(MJCF), bank)
     try:
-        sim.run(t_end, record_every=10, cmd_every=10, probe=probe)
+        every = max(1, round(1e-3 / model.opt.timestep))
+        sim.run(t_end, record_every=every, cmd_every=every, probe=probe)
     finally:
-        bank.close()
+        if bank is not None:
+            bank.close()
     rec = sim.rec.arrays()
     pr = rec["probe"]
-    tendon_error = float(np.abs(pr[:, 3:5] - rec["x_rod"]).max())
-    r = LegRun(bank.kind, line, rec, sim.timing, plan, t_end, hyd, tendon_error, [], [], None)
+    q = rec["q"]
+    lever_x = np.array([[lv.rod(float(qj))[0] for lv, qj in zip(LEVERS, row, strict=True)] for row in q])
+    tendon_error = float(np.abs(pr[:, 3:5] - lever_x).max())
+    r = LegRun(sim.kind, line, rec, sim.timing, plan, t_end, HYD, tendon_error, [], [], None)
     if render:
         render_frames(model, r)
     return r

@@ -18,7 +18,7 @@ out/quadruped.png (base height, roll, pitch, the 12 rod forces) and, where a GL 
 can be made, out/quadruped_render.png.
 
     .venv/bin/python cosim-examples/quadruped.py [--duration 8.5] [--short]
-        [--actuator auto|fmu|stand-in] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
+        [--actuator plugin|fmu] [--timestep 1e-4] [--method exact|fixed_cost|both] [--fmi3] [--no-render]
 
 --method sets the FMU's solver.method; both runs the same scenario with exact, then
 fixed_cost, and prints their real-time factors and figures side by side.
@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ehsv import cli, robot
+from ehsv import cli, mjplugin, robot
 from ehsv.robot import Hydraulics, Lever, LeverSet, smooth
 
 L1 = L2 = 0.35
@@ -73,6 +73,7 @@ GEOMETRY = tuple(
 )
 JOINTS = tuple(f"{g.name}_{j}" for g in GEOMETRY for j in ("haa", "hfe", "kfe"))
 LEVERS = tuple(lv for g in GEOMETRY for lv in g.levers)
+MJCF = mjplugin.MJCF_DIR / "quadruped.xml"
 
 
 def _leg_xml(g: LegGeometry) -> tuple[str, str]:
@@ -127,7 +128,19 @@ def mjcf() -> str:
   <tendon>
     {tendons}
   </tendon>
+{mjplugin.actuator_block(JOINTS, LEVERS, HYD)}
+{stand_key()}
 </mujoco>"""
+
+
+def stand_key() -> str:
+    """The keyframe "stand": the trunk level at H_STAND, every foot under its hip, the rods'
+    commands holding it (open it in the viewer: Simulation > Key > Load)."""
+    q = np.zeros(len(JOINTS))
+    for i, g in enumerate(GEOMETRY):
+        q[3 * i + 1 : 3 * i + 3] = robot.leg_ik(H_STAND - FOOT_R, 0.0, L1, L2, g.bend)
+    x_ref = LeverSet(LEVERS).rod(q)[0]
+    return mjplugin.keyframe("stand", (0.0, 0.0, H_STAND, 1.0, 0.0, 0.0, 0.0, *q), x_ref)
 
 
 @dataclass(frozen=True)
@@ -246,30 +259,31 @@ class QuadRun:
 def run(
     duration: float = 8.5,
     short: bool = False,
-    kind: str = "auto",
+    kind: str = "plugin",
     version: str = "fmi2",
     render: bool = True,
-    hyd: Hydraulics = HYD,
     method: str = "exact",
+    timestep: float | None = None,
+    substep: float | None = None,
 ) -> QuadRun:
+    """The run on MJCF (``MJCF``) with ``kind`` "plugin" actuators or "fmu" (the reference);
+    ``timestep`` replaces MuJoCo's 1e-4 s (the plugin sub-steps at ``substep``)."""
     if render:
         robot.gl_backend()
     import mujoco
 
     plan = Plan.short() if short else Plan.full(duration)
-    h0 = H_STAND if short else H_CROUCH
     t_end = 0.4 if short else duration
-    model = mujoco.MjModel.from_xml_string(mjcf())
+    config = {"solver.method": method}
+    if substep is not None:
+        config["substep"] = repr(substep)
+    model = mjplugin.load_model(MJCF, kind, timestep, config)
     data = mujoco.MjData(model)
-    levers = LeverSet(LEVERS)
-    ctrl = TrotController(plan)
-    data.qpos[2] = h0
-    q0 = ctrl(0.0, data)
-    for j, name in enumerate(JOINTS):
-        data.qpos[model.joint(name).qposadr[0]] = q0[j]
-    mujoco.mj_forward(model, data)
-    x0 = levers.rod(q0)[0]
-    bank, line = robot.make_bank(kind, len(JOINTS), hyd, x0, x0, version, method)
+    ctrl = initial_pose(model, data, plan, short)
+    bank, line = None, f"actuators: {len(JOINTS)} x ehsv.actuator MuJoCo plugin (solver.method = {method})"
+    if kind == "fmu":
+        zero = np.zeros(len(JOINTS))
+        bank, line = robot.make_bank("fmu", len(JOINTS), HYD, zero, zero, version, method)
 
     def probe(d):
         roll, pitch = attitude(d.qpos[3:7])
@@ -278,17 +292,34 @@ def run(
     def fallen(d):
         return d.qpos[2] < 0.2 or abs(d.qpos[4]) > 0.5 or abs(d.qpos[5]) > 0.5
 
-    sim = robot.Cosim(model, data, JOINTS, levers, bank, ctrl)
+    levers = LeverSet(LEVERS)
+    sim = mjplugin.MjcfCosim(model, data, JOINTS, levers, ctrl, mjplugin.length_mid(MJCF), bank)
     try:
-        sim.run(t_end, record_every=10, cmd_every=10, probe=probe, stop=fallen)
+        every = max(1, round(1e-3 / model.opt.timestep))
+        sim.run(t_end, record_every=every, cmd_every=every, probe=probe, stop=fallen)
     finally:
-        bank.close()
+        if bank is not None:
+            bank.close()
     rec = sim.rec.arrays()
     fell = data.time < t_end - 1e-3
-    r = QuadRun(bank.kind, line, rec, sim.timing, plan, float(data.time), hyd, fell)
+    r = QuadRun(sim.kind, line, rec, sim.timing, plan, float(data.time), HYD, fell)
     if render:
         render_frames(model, r)
     return r
+
+
+def initial_pose(model, data, plan: Plan, short: bool) -> TrotController:
+    """Puts the robot in its first pose (crouch, or stance for the short run): the
+    controller's joint commands at t = 0; returns the controller."""
+    import mujoco
+
+    ctrl = TrotController(plan)
+    data.qpos[2] = H_STAND if short else H_CROUCH
+    q0 = ctrl(0.0, data)
+    for j, name in enumerate(JOINTS):
+        data.qpos[model.joint(name).qposadr[0]] = q0[j]
+    mujoco.mj_forward(model, data)
+    return ctrl
 
 
 def render_frames(model, r: QuadRun) -> None:

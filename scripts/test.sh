@@ -3,6 +3,7 @@
 #   1. Python venv with the pinned tools (scripts/setup-venv.sh)
 #   2. cargo test --workspace --release         (Rust unit and integration tests)
 #   3. cargo run --release -p build-fmu         (target/fmu/EhsvActuator-fmi{2,3}.fmu)
+#      cargo build --release -p ehsv-mujoco     (target/release/libehsv_mujoco.so, the MuJoCo plugin)
 #   4. pytest tests/python                      (both archives through fmpy + fmutool)
 #   5. benchmark smoke run through the C API    (bench --quick)
 #   6. quality gates: cargo fmt --check, clippy -D warnings, no function over 80 lines
@@ -34,6 +35,7 @@ scripts/setup-gl.sh || echo "=== setup-gl: FAILED (MuJoCo pictures will be skipp
 
 stage cargo-test cargo test --workspace --release
 stage build-fmu cargo run --release -p build-fmu
+stage mujoco-plugin cargo build --release -p ehsv-mujoco
 stage pytest .venv/bin/python -m pytest tests/python -q
 stage cdylib cargo build --release -p ehsv-actuator
 stage bench cargo run --release -p ehsv-tests --bin bench -- --quick

@@ -1,6 +1,6 @@
 """The FMU's interface, read from its own modelDescription.xml (no copy kept here).
 
-The variable table in fmu-src/src/variables.rs renders both archives' XML; this module
+The variable table in fmu-src/variables/src/variables.rs renders both archives' XML; this module
 reads the FMI 2.0 archive's with ``fmpy.read_model_description`` the first time a value
 is asked for, so importing the package does not need a built FMU:
 

@@ -12,17 +12,13 @@ What cosim-examples/hydraulic_leg.py and quadruped.py share:
   ``x_rod = L(q) - L(q_mid)``, ``v_rod = L'(q) qdot`` and the joint torque of a rod force
   is ``tau = F_rod L'(q)`` (virtual work). ``LeverSet`` evaluates all of a robot's levers
   at once (numpy),
-* the actuator banks, one class boundary with two implementations:
-  ``FmuBank`` (the EhsvActuator FMU with its motion port, ``cylinder.port`` = motion: the
+* ``FmuBank``: the EhsvActuator FMU with its motion port (``cylinder.port`` = motion: the
   host owns the moving mass and sends ``x_rod``/``v_rod``, the FMU answers ``F_rod``),
   called through fmpy's ctypes functions on preallocated arrays, one setReal / doStep /
-  getReal per actuator and step; and ``StandInBank``, the same interface in numpy (valve,
-  chambers, relief, friction, end stops, a P position loop) for archives without the
-  port. ``make_bank`` chooses,
-* ``Cosim``: the co-simulation loop as MuJoCo's examples write one (mj_step1 -> actuators
-  -> qfrc_applied -> mj_step2), the joint commands from a controller at a lower rate,
-  recording, rendering at chosen instants, and the wall time split into MuJoCo, the
-  actuator calls and the Python around them,
+  getReal per actuator and step (``make_bank``); the reference the MuJoCo plugin is
+  checked against (the loop that runs either is ``ehsv.mjplugin.MjcfCosim``),
+* ``Timing``, ``Record``: the wall time split into MuJoCo, the actuator calls and the
+  Python around them; the records of a run,
 * ``smooth``: the half-cosine ramps of the examples' plans,
 * ``leg_ik``: the 2-link leg's joint angles that put the foot at a point below the hip,
 * ``render_frames``/``save_strip``: MuJoCo's offscreen renderer (MUJOCO_GL=egl or osmesa);
@@ -40,7 +36,6 @@ import argparse
 import ctypes
 import math
 import os
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -197,7 +192,7 @@ def motion_port_missing(version: str = "fmi2") -> str | None:
 
 
 #: how the figures name the actuators of each bank kind
-KIND_LABEL = {"fmu": "EhsvActuator FMU", "stand-in": "Python stand-in"}
+KIND_LABEL = {"fmu": "EhsvActuator FMU", "plugin": "ehsv.actuator MuJoCo plugin"}
 
 
 class ActuatorBank:
@@ -352,106 +347,18 @@ class FmuBank(ActuatorBank):
         self.insts = []
 
 
-class StandInBank(ActuatorBank):
-    """The motion port's interface in numpy, for archives that do not have it yet.
-
-    The same physics in outline, explicit, 2 sub-steps per call: a P position loop
-    (``Kp``, limited to +-10 mA) whose current the valve follows with its 1.19 ms spool
-    lag (the coil behind the op-amp driver being much faster), the critically centred
-    valve's port flows ``Q = K3 x_spool sqrt(dp / (dp_rated / 2))`` (linear below 1 bar),
-    the two chambers' pressures with the rod moving as x + v (t - t_k), the relief valves
-    as a ceiling at crack + override, the cavitation floor, the piston's bypass leakage,
-    viscous + smoothed Coulomb friction and the 1e8 N/m end stops. F_rod = p_A A_A -
-    p_B A_B - friction - end stop, the step's mean as the FMU reports it."""
-
-    kind = "stand-in"
-
-    def __init__(self, n: int, hyd: Hydraulics, x0, x_ref0, substeps: int = 2):
-        self.n, self.hyd, self.sub = n, hyd, substeps
-        self.F = np.zeros(n)
-        self.K_flow = 0.025268  # m3/s per A, K3 K1 / Kw
-        self.tau_spool = 1.19e-3
-        self.i_max = 0.01
-        self.beta, self.V_dead = 1e9, 2e-6
-        self.b, self.F_c, self.v_c = 200.0, 20.0, 1e-3
-        self.k_stop, self.c_stop = 1e8, 1e4
-        self.dp_half = 6.8948e6 / 2
-        self.dp_lam = 1e5
-        A_A, A_B = hyd.A_A, hyd.A_B
-        p_s = hyd.p_supply
-        self.p_A = np.full(n, p_s * A_B / (A_A + A_B))  # balanced, p_A + p_B = p_S
-        self.p_B = np.full(n, p_s * A_A / (A_A + A_B))
-        self.Qv = np.zeros(n)
-        self.i = np.zeros(n)
-        self.x0 = np.asarray(x0, dtype=float)
-
-    def _ssqrt(self, dp):
-        """Signed square root of dp / (dp_rated / 2), the odd cubic below 1 bar."""
-        a = np.abs(dp)
-        lam = self.dp_lam
-        u = np.minimum(a, lam) / lam
-        small = math.sqrt(lam / self.dp_half) * u * (1.5 - 0.5 * u * u)
-        return np.sign(dp) * np.where(a < lam, small, np.sqrt(a / self.dp_half))
-
-    def step(self, t, h, x, v, x_ref) -> None:
-        x = np.asarray(x, dtype=float)
-        v = np.asarray(v, dtype=float)
-        hyd = self.hyd
-        A_A, A_B, S = hyd.A_A, hyd.A_B, hyd.stroke
-        i_cmd = np.clip(hyd.Kp * (np.asarray(x_ref) - x), -self.i_max, self.i_max)
-        dt = h / self.sub
-        a = 1.0 - math.exp(-dt / self.tau_spool)
-        p_hi = hyd.p_crack + hyd.dp_override
-        p_lo = -0.09e6
-        F_h = 0.0
-        for k in range(self.sub):
-            xk = x + v * (k + 0.5) * dt
-            self.Qv += a * (self.K_flow * i_cmd - self.Qv)
-            pos = self.Qv >= 0
-            Q_A = self.Qv * np.where(pos, self._ssqrt(hyd.p_supply - self.p_A), self._ssqrt(self.p_A))
-            Q_B = self.Qv * np.where(pos, self._ssqrt(self.p_B), self._ssqrt(hyd.p_supply - self.p_B))
-            V_A = np.maximum(self.V_dead + A_A * (xk + S / 2), 1e-3 * self.V_dead)
-            V_B = np.maximum(self.V_dead + A_B * (S / 2 - xk), 1e-3 * self.V_dead)
-            Q_L = hyd.C_leak * (self.p_A - self.p_B)
-            self.p_A = np.clip(self.p_A + dt * self.beta / V_A * (Q_A - A_A * v - Q_L), p_lo, p_hi)
-            self.p_B = np.clip(self.p_B + dt * self.beta / V_B * (-Q_B + A_B * v + Q_L), p_lo, p_hi)
-            F_h = F_h + (self.p_A * A_A - self.p_B * A_B)
-        self.i = self.Qv / self.K_flow
-        xm = x + v * (h / 2)  # the force is the step's mean, as the FMU's F_rod
-        over = np.abs(xm) - S / 2
-        stop = np.where(
-            over > 0, np.maximum(0.0, self.k_stop * over + self.c_stop * v * np.sign(xm)) * np.sign(xm), 0.0
-        )
-        friction = self.b * v + self.F_c * np.tanh(v / self.v_c)
-        self.F[:] = F_h / self.sub - friction - stop
-
-    def monitor(self) -> np.ndarray:
-        return np.vstack([self.p_A, self.p_B, self.i])
-
-
 def make_bank(
     kind: str, n: int, hyd: Hydraulics, x0, x_ref0, version: str = "fmi2", method: str = "exact"
 ) -> tuple[ActuatorBank, str]:
-    """The actuator bank ``kind`` ('fmu', 'stand-in' or 'auto': the FMU when its archive
-    has the motion port, else the stand-in) and a line saying which and why. ``method``:
-    the FMU's solver.method ('exact' or 'fixed_cost'; the stand-in has none)."""
-    if kind == "auto":
-        missing = motion_port_missing(version)
-        kind = "stand-in" if missing else "fmu"
-        why = f" ({missing})" if missing else ""
-    else:
-        why = ""
-    if kind == "fmu":
-        require_fmu(version)
-        bank = FmuBank(n, hyd, x0, x_ref0, version, extra=method_params(method))
-        return bank, (
-            f"actuators: {n} x EhsvActuator FMU ({version}, motion port, position loop, "
-            f"solver.method = {method})"
-        )
-    if kind == "stand-in":
-        bank = StandInBank(n, hyd, x0, x_ref0)
-        return bank, f"actuators: {n} x Python stand-in of the motion port{why} (no solver.method)"
-    raise ValueError(f"unknown actuator kind {kind!r}")
+    """The FMU bank (``kind`` 'fmu') and a line saying what it is. ``method``: the FMU's
+    solver.method ('exact' or 'fixed_cost')."""
+    if kind != "fmu":
+        raise ValueError(f"unknown actuator kind {kind!r}")
+    require_fmu(version)
+    bank = FmuBank(n, hyd, x0, x_ref0, version, extra=method_params(method))
+    return bank, (
+        f"actuators: {n} x EhsvActuator FMU ({version}, motion port, position loop, solver.method = {method})"
+    )
 
 
 # ---------------------------------------------------------------------------------------
@@ -497,12 +404,16 @@ class Timing:
 
     def line(self, t_sim: float, n_act: int, kind: str = "fmu") -> str:
         us = 1e6 / max(self.steps, 1)
-        return (
+        head = (
             f"wall {self.wall:.2f} s for {t_sim:.2f} s simulated: real-time factor "
-            f"{t_sim / self.wall:.2f} (> 1 is faster than real time); per step "
-            f"{self.wall * us:.1f} us = MuJoCo {self.mujoco * us:.1f} + actuators "
-            f"({n_act} x {'set/doStep/get' if kind == 'fmu' else kind}) {self.actuators * us:.1f} + "
-            f"Python {self.python * us:.1f}"
+            f"{t_sim / self.wall:.2f} (> 1 is faster than real time); per step {self.wall * us:.1f} us = "
+        )
+        if kind == "plugin":
+            inside = f"MuJoCo with {n_act} plugin actuators {self.mujoco * us:.1f}"
+            return head + f"{inside} + Python {self.python * us:.1f}"
+        return head + (
+            f"MuJoCo {self.mujoco * us:.1f} + actuators ({n_act} x set/doStep/get) "
+            f"{self.actuators * us:.1f} + Python {self.python * us:.1f}"
         )
 
 
@@ -531,100 +442,6 @@ def _as_slice(idx: np.ndarray):
     if len(idx) and np.all(np.diff(idx) == 1):
         return slice(int(idx[0]), int(idx[-1]) + 1)
     return idx
-
-
-class Cosim:
-    """A MuJoCo model whose hinges ``joints`` are each driven by one actuator of ``bank``
-    through ``levers``.
-
-    Every step h (the model's timestep): mj_step1; the rods' x, v from qpos/qvel through
-    the levers; the bank's step from t to t + h with the position commands; the rod forces
-    times the moment arms into qfrc_applied; mj_step2. ``controller(t, data)`` gives the
-    joint angle commands every ``cmd_every`` steps (a robot's control rate), turned into
-    rod commands x_ref through the same levers."""
-
-    def __init__(self, model, data, joints: Sequence[str], levers: LeverSet, bank: ActuatorBank, controller):
-        import mujoco
-
-        self.mj = mujoco
-        self.model, self.data = model, data
-        self.levers, self.bank, self.controller = levers, bank, controller
-        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
-        if min(ids) < 0:
-            raise KeyError(f"joints not in the model: {joints}")
-        self.qadr = np.array([model.jnt_qposadr[i] for i in ids])
-        self.dadr = np.array([model.jnt_dofadr[i] for i in ids])
-        self.timing = Timing()
-        self.rec = Record()
-        self.q_cmd = np.zeros(len(joints))
-
-    def rods(self):
-        q = self.data.qpos[self.qadr]
-        x, dx = self.levers.rod(q)
-        return q, x, dx
-
-    def run(
-        self,
-        t_end: float,
-        record_every: int = 10,
-        cmd_every: int = 10,
-        probe: Callable | None = None,
-        stop: Callable | None = None,
-    ) -> Timing:
-        """Steps to t_end; records every ``record_every`` steps (the joints, commands,
-        rods, forces, the bank's MONITORED outputs, qpos for pictures afterwards and
-        ``probe(data)``: values of the caller's choosing) and stops early when
-        ``stop(data)`` is true (checked at the command rate)."""
-        mj, model, data, bank = self.mj, self.model, self.data, self.bank
-        h = float(model.opt.timestep)
-        n_steps = int(round((t_end - data.time) / h))
-        qpos, qvel, qfrc = data.qpos, data.qvel, data.qfrc_applied
-        qadr, dadr, rod = _as_slice(self.qadr), _as_slice(self.dadr), self.levers.rod
-        step1, step2 = mj.mj_step1, mj.mj_step2
-        rec, tim = self.rec, self.timing
-        pc = time.perf_counter
-        xref = None
-        t_mj = t_act = 0.0
-        done = 0
-        w0 = pc()
-        t0 = data.time
-        for k in range(n_steps):
-            t = t0 + k * h
-            c0 = pc()
-            step1(model, data)
-            c1 = pc()
-            if k % cmd_every == 0:
-                self.q_cmd = np.array(self.controller(t, data), dtype=float)
-                xref = rod(self.q_cmd)[0].tolist()
-                if stop is not None and stop(data):
-                    break
-            done += 1
-            q = qpos[qadr]
-            x, dx = rod(q)
-            v = dx * qvel[dadr]
-            c2 = pc()
-            bank.step(t, h, x.tolist(), v.tolist(), xref)
-            c3 = pc()
-            qfrc[dadr] = bank.F * dx
-            c4 = pc()
-            step2(model, data)
-            c5 = pc()
-            t_mj += (c1 - c0) + (c5 - c4)
-            t_act += c3 - c2
-            if k % record_every == 0:
-                rec.t.append(t + h)
-                rec.q.append(q.copy())
-                rec.q_cmd.append(self.q_cmd)
-                rec.x_rod.append(x)
-                rec.F.append(bank.F.copy())
-                rec.mon.append(bank.monitor())
-                rec.probe.append(probe(data) if probe else ())
-                rec.qpos.append(qpos.copy())
-        tim.steps += done
-        tim.wall += pc() - w0
-        tim.mujoco += t_mj
-        tim.actuators += t_act
-        return tim
 
 
 # ---------------------------------------------------------------------------------------
@@ -751,6 +568,7 @@ def scene_head(name: str, texrepeat: int, light: str, light_dir: str, floor: flo
     loop, the look (checker floor, sky, one light) and the floor they stand on."""
     return f"""<mujoco model="{name}">
   <compiler angle="radian"/>
+  <extension><plugin plugin="ehsv.actuator"/></extension>
   <option timestep="1e-4" integrator="Euler"/>
   <visual><global offwidth="800" offheight="800"/><quality shadowsize="2048"/></visual>
   <asset>
@@ -787,7 +605,13 @@ def parser(doc: str, duration: float, short: str, out: str) -> argparse.Argument
         "--duration", type=float, default=duration, help=f"simulated time, s (default {duration:g})"
     )
     ap.add_argument("--short", action="store_true", help=short)
-    ap.add_argument("--actuator", choices=("auto", "fmu", "stand-in"), default="auto")
+    ap.add_argument(
+        "--actuator",
+        choices=("plugin", "fmu"),
+        default="plugin",
+        help="the ehsv.actuator MuJoCo plugin (default) or the FMU on the same tendons (the reference)",
+    )
+    ap.add_argument("--timestep", type=float, default=None, help="MuJoCo's timestep, s (the MJCF's: 1e-4)")
     ap.add_argument(
         "--method",
         choices=METHOD_CHOICES,
@@ -843,9 +667,16 @@ def run_example(args, run: Callable, report: Callable, plot: Callable, figures: 
     version = cli.version(args)
     if args.actuator == "fmu" and cli.archive_missing(version):
         return None
+    if args.actuator == "plugin":
+        from .mjplugin import plugin_missing
+
+        if plugin_missing():
+            print(plugin_missing())
+            return None
 
     def one(method, render):
-        return run(args.duration, args.short, args.actuator, version, render=render, method=method)
+        kind, h = args.actuator, args.timestep
+        return run(args.duration, args.short, kind, version, render=render, method=method, timestep=h)
 
     return run_methods(args, one, report, plot, figures)
 

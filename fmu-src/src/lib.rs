@@ -16,5 +16,4 @@ pub mod fmi3;
 pub mod fmi_common;
 pub mod model;
 pub use ehsv_physics as physics;
-pub mod units;
-pub mod variables;
+pub use ehsv_variables::{units, variables};

@@ -8,8 +8,8 @@ each joint driven by the EhsvActuator FMU's motion port through a lever.
   as long as the lever's law says,
 * the same with solver.method = fixed_cost,
 * the quadruped (68 kg, 12 actuators) holds its stance under its own weight (0.4 s),
-* the same leg run against the Python stand-in of the port, so that the coupling code is
-  exercised even where the archive has no port.
+* the same leg and quadruped on the ehsv.actuator MuJoCo plugin (the robots' MJCF as
+  written; test_mujoco_plugin.py checks it against the FMU bit for bit).
 
 The FMU runs are skipped, saying why, only when the archive's modelDescription has no
 motion port (cylinder.port, x_rod, v_rod, F_rod).
@@ -36,6 +36,14 @@ def _require_port(version: str) -> None:
     why = robot.motion_port_missing(version)
     if why:
         pytest.skip(why)
+
+
+def _require_plugin() -> None:
+    from ehsv import mjplugin
+
+    missing = mjplugin.plugin_missing()
+    if missing:
+        pytest.fail(missing, pytrace=False)
 
 
 @functools.cache
@@ -140,11 +148,11 @@ def test_leg_holds_its_trunk_with_fixed_cost(version):
     assert (r.rec["F"] != _fmu_leg(version).rec["F"]).any()
 
 
-def test_leg_with_the_stand_in():
-    """The same run against the Python stand-in of the motion port (no FMU needed): the
-    co-simulation code, the levers and the controller on their own."""
-    r = hydraulic_leg.run(short=True, kind="stand-in", render=False)
-    assert r.kind == "stand-in"
+def test_leg_on_the_plugin():
+    """The same run on the ehsv.actuator MuJoCo plugin (the MJCF as written)."""
+    _require_plugin()
+    r = hydraulic_leg.run(short=True, kind="plugin", render=False)
+    assert r.kind == "plugin"
     _check_leg(r)
 
 
@@ -157,9 +165,10 @@ def test_quadruped_holds_its_stance(version):
     _check_quadruped(r)
 
 
-def test_quadruped_with_the_stand_in():
-    r = quadruped.run(short=True, kind="stand-in", render=False)
-    assert r.kind == "stand-in"
+def test_quadruped_on_the_plugin():
+    _require_plugin()
+    r = quadruped.run(short=True, kind="plugin", render=False)
+    assert r.kind == "plugin"
     _check_quadruped(r)
 
 

@@ -18,7 +18,7 @@ from fmpy.fmi1 import FMICallException
 import ehsv
 
 INPUTS = ("i_ref", "V_supply", "p_supply", "F_ext", "Q_ref", "x_ref")
-# Chosen in fmu-src/src/variables.rs: what a user tunes or varies during a run.
+# Chosen in fmu-src/variables/src/variables.rs: what a user tunes or varies during a run.
 TUNABLE = {
     "driver.Kp", "driver.Ki", "driver.V_drop", "driver.slew_rate",
     "industrial.Kp", "industrial.Ki", "industrial.slew_rate",

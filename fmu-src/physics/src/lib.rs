@@ -80,6 +80,12 @@ impl Physics {
         work
     }
 
+    /// The force on the rod averaged over the last step (the output F_rod), without
+    /// computing the other outputs.
+    pub fn rod_force_mean(&self) -> f64 {
+        self.rod_force_mean
+    }
+
     /// The outputs at the current state.
     pub fn outputs(&self) -> Outputs {
         let mut out = self.actuator.outputs();

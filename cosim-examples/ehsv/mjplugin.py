@@ -1,0 +1,247 @@
+"""The EhsvActuator as a MuJoCo engine plugin (``ehsv.actuator``, crate mujoco-plugin/):
+loading it, the robots' MJCF files (cosim-examples/mjcf/), and the host loop the examples
+and tests run them with, on the plugin or, as the reference, on the FMU.
+
+* ``load_plugin()``: ``mujoco.mj_loadPluginLibrary`` on target/release/libehsv_mujoco.so
+  (``cargo build --release -p ehsv-mujoco``; EHSV_MUJOCO_PLUGIN names another path),
+* ``OUTPUTS``: the outputs in each actuator's plugin_state slots, in order (docs/mujoco.md),
+  ``outputs(model, data, name)``: one output of every plugin actuator,
+* ``actuator_block``: the ``<actuator>`` of plugin actuators on the cylinders' tendons,
+* ``load_model(path, actuators, timestep, config)``: an MJCF file as written (plugin
+  actuators) or with each plugin actuator turned into a ``general`` force actuator on the
+  same tendon (``actuators="fmu"``: the FMU gives the force through ``ctrl``),
+* ``MjcfCosim``: the loop, the same for both: mj_step1 -> the command (x_ref) -> with the
+  FMU: x_rod = actuator_length - length_mid, v_rod = actuator_velocity, doStep, ctrl =
+  F_rod; with the plugin: ctrl = x_ref -> mj_step2 (the plugin steps inside it).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from .robot import MONITORED, Hydraulics, Lever, LeverSet, Record, Timing
+
+ROOT = Path(__file__).resolve().parents[2]
+MJCF_DIR = ROOT / "cosim-examples" / "mjcf"
+PLUGIN_NAME = "ehsv.actuator"
+#: the FMU's output variables in table order: slots 0.. of each actuator's plugin_state
+OUTPUTS = (
+    "i_coil",
+    "u_driver",
+    "driver_saturated",
+    "x_flapper",
+    "x_spool",
+    "Q_valve",
+    "Q_A",
+    "Q_B",
+    "p_A",
+    "p_B",
+    "x_piston",
+    "v_piston",
+    "F_hydraulic",
+    "F_rod",
+    "dF_rod_dx",
+    "dF_rod_dv",
+)
+_loaded: list[str] = []
+
+
+def plugin_path() -> Path:
+    env = os.environ.get("EHSV_MUJOCO_PLUGIN")
+    return Path(env) if env else ROOT / "target" / "release" / "libehsv_mujoco.so"
+
+
+def plugin_missing() -> str | None:
+    """None if the plugin library is built, else how to build it."""
+    p = plugin_path()
+    if p.exists():
+        return None
+    return f"{p} is not built: cargo build --release -p ehsv-mujoco"
+
+
+def load_plugin() -> Path:
+    """Registers ehsv.actuator with MuJoCo (once per process)."""
+    import mujoco
+
+    p = plugin_path()
+    if not _loaded:
+        missing = plugin_missing()
+        if missing:
+            raise FileNotFoundError(missing)
+        mujoco.mj_loadPluginLibrary(str(p))
+        _loaded.append(str(p))
+    return p
+
+
+def actuator_block(joints: Sequence[str], levers: Sequence[Lever], hyd: Hydraulics) -> str:
+    """Plugin actuators named after the joints, each on the tendon ``<joint>_cyl`` (the
+    cylinder between its pivots, length L(q)) with length_mid = L(q_mid), the position
+    loop, and ``hyd``'s values under the FMU's variable names."""
+    lines = []
+    half = hyd.stroke / 2
+    for j, lever in zip(joints, levers, strict=True):
+        config = {"control_mode": "position", **hyd.fmu_values(), "length_mid": lever.L_mid}
+        keys = "".join(f'\n        <config key="{k}" value="{_text(v)}"/>' for k, v in config.items())
+        head = f'<plugin name="{j}" plugin="{PLUGIN_NAME}" tendon="{j}_cyl" ctrlrange="{-half:g} {half:g}">'
+        lines.append(f"    {head}{keys}\n    </plugin>")
+    return "  <actuator>\n" + "\n".join(lines) + "\n  </actuator>"
+
+
+def keyframe(name: str, qpos: Sequence[float], ctrl: Sequence[float]) -> str:
+    """A keyframe (the viewer's Simulation > Key): a pose and its rod commands."""
+
+    def text(v):
+        return " ".join(repr(float(x)) for x in v)
+
+    return f'  <keyframe>\n    <key name="{name}" qpos="{text(qpos)}" ctrl="{text(ctrl)}"/>\n  </keyframe>'
+
+
+def _text(value) -> str:
+    """A config value as MJCF text: floats exactly (repr), the rest as str."""
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+EXTENSION = f'  <extension><plugin plugin="{PLUGIN_NAME}"/></extension>'
+_PLUGIN_ACTUATOR = re.compile(
+    r'<plugin name="([^"]+)" plugin="' + re.escape(PLUGIN_NAME) + r'" tendon="([^"]+)"([^>]*)>(.*?)</plugin>',
+    re.S,
+)
+
+
+def mjcf_text(
+    path: Path, actuators: str = "plugin", timestep: float | None = None, config: dict | None = None
+) -> str:
+    """The MJCF at ``path`` with the changes ``load_model`` describes."""
+    text = Path(path).read_text()
+    if timestep is not None:
+        text = re.sub(r'(<option[^>]*timestep=")[^"]*"', rf"\g<1>{timestep!r}" + '"', text, count=1)
+    if actuators == "fmu":
+        text = text.replace(EXTENSION + "\n", "")
+        text = _PLUGIN_ACTUATOR.sub(r'<general name="\1" tendon="\2" gainprm="1" ctrllimited="false"/>', text)
+    elif config:
+        extra = "".join(f'\n        <config key="{k}" value="{v}"/>' for k, v in config.items())
+
+        def add(m):
+            head = f'<plugin name="{m[1]}" plugin="{PLUGIN_NAME}" tendon="{m[2]}"{m[3]}>'
+            return f"{head}{m[4].rstrip()}{extra}\n    </plugin>"
+
+        text = _PLUGIN_ACTUATOR.sub(add, text)
+    return text
+
+
+def load_model(
+    path: Path, actuators: str = "plugin", timestep: float | None = None, config: dict | None = None
+):
+    """The model of the MJCF file ``path``: ``actuators`` "plugin" (as written; the plugin
+    is loaded) or "fmu" (each plugin actuator a general one, gain 1, on the same tendon:
+    its force is its ctrl); ``timestep`` replaces the option's; ``config`` adds keys to
+    every plugin actuator (e.g. solver.method, substep)."""
+    import mujoco
+
+    if actuators == "plugin":
+        load_plugin()
+    return mujoco.MjModel.from_xml_string(mjcf_text(path, actuators, timestep, config))
+
+
+def length_mid(path: Path) -> dict[str, float]:
+    """Each plugin actuator's length_mid in the file (by actuator name)."""
+    out = {}
+    for name, _, _, body in _PLUGIN_ACTUATOR.findall(Path(path).read_text()):
+        m = re.search(r'key="length_mid" value="([^"]+)"', body)
+        out[name] = float(m[1]) if m else 0.0
+    return out
+
+
+def outputs(model, data, name: str, actuators: Sequence[int]) -> np.ndarray:
+    """Output ``name`` (one of OUTPUTS) of the plugin actuators ``actuators`` (ids)."""
+    k = OUTPUTS.index(name)
+    adr = [model.plugin_stateadr[model.actuator_plugin[a]] + k for a in actuators]
+    return data.plugin_state[adr].copy()
+
+
+class MjcfCosim:
+    """A robot of an MJCF file whose actuators are named after ``joints``, driven by the
+    plugin (``bank`` None) or by an FMU bank (``bank``: robot.FmuBank started at x_rod = 0,
+    x_ref = 0, as the plugin starts; the model from ``load_model(..., "fmu")``). The
+    commands: ``controller(t, data)`` gives joint angles every ``cmd_every`` steps, turned
+    into x_ref through ``levers``. Records as robot.Cosim does."""
+
+    def __init__(self, model, data, joints: Sequence[str], levers: LeverSet, controller, lmid, bank=None):
+        import mujoco
+
+        self.mj, self.model, self.data = mujoco, model, data
+        self.levers, self.controller, self.bank = levers, controller, bank
+        self.act = np.array([model.actuator(j).id for j in joints])
+        ids = [model.joint(j).id for j in joints]
+        self.qadr = np.array([model.jnt_qposadr[i] for i in ids])
+        self.lmid = np.array([lmid[j] for j in joints])
+        self.timing, self.rec = Timing(), Record()
+        self.q_cmd = np.zeros(len(joints))
+        self.kind = "plugin" if bank is None else "fmu"
+
+    def forces(self) -> np.ndarray:
+        return self.bank.F.copy() if self.bank is not None else self.data.actuator_force[self.act].copy()
+
+    def monitor(self) -> np.ndarray:
+        if self.bank is not None:
+            return self.bank.monitor()
+        return np.vstack([outputs(self.model, self.data, n, self.act) for n in MONITORED])
+
+    def run(
+        self, t_end: float, record_every=10, cmd_every=10, probe: Callable | None = None, stop=None
+    ) -> Timing:
+        mj, model, data, bank, act = self.mj, self.model, self.data, self.bank, self.act
+        h = float(model.opt.timestep)
+        n_steps = int(round((t_end - data.time) / h))
+        rod, rec, tim, pc = self.levers.rod, self.rec, self.timing, time.perf_counter
+        t_mj = t_act = 0.0
+        done = 0
+        xref = np.zeros(len(act))
+        w0 = pc()
+        for k in range(n_steps):
+            t = data.time
+            c0 = pc()
+            mj.mj_step1(model, data)
+            c1 = pc()
+            if k % cmd_every == 0:
+                self.q_cmd = np.array(self.controller(t, data), dtype=float)
+                xref = rod(self.q_cmd)[0]
+                if stop is not None and stop(data):
+                    break
+            done += 1
+            q = data.qpos[self.qadr].copy()
+            x = data.actuator_length[act] - self.lmid
+            if bank is not None:
+                v = data.actuator_velocity[act]
+                bank.step(t, h, x.tolist(), v.tolist(), xref.tolist())
+                data.ctrl[act] = bank.F
+            else:
+                data.ctrl[act] = xref
+            c2 = pc()
+            mj.mj_step2(model, data)
+            c3 = pc()
+            t_mj += (c1 - c0) + (c3 - c2)
+            t_act += c2 - c1
+            if k % record_every == 0:
+                rec.t.append(t + h)
+                rec.q.append(q)
+                rec.q_cmd.append(self.q_cmd)
+                rec.x_rod.append(x)
+                rec.F.append(self.forces())
+                rec.mon.append(self.monitor())
+                rec.probe.append(probe(data) if probe else ())
+                rec.qpos.append(data.qpos.copy())
+        tim.steps += done
+        tim.wall += pc() - w0
+        if bank is None:  # the plugin steps inside mj_step2: MuJoCo's time includes it
+            t_mj += t_act
+            t_act = 0.0
+        tim.mujoco += t_mj
+        tim.actuators += t_act
+        return tim
