@@ -44,12 +44,59 @@ struct State {
     /// Before initialisation: parameters, inputs or the start time changed since `physics`
     /// and the outputs were built.
     stale: bool,
+    /// Outputs not yet written since the last step: they are computed when first read (a
+    /// host reads a few of them each step, and the port flows and the rod's slopes evaluate
+    /// the cylinder's laws), in two groups ([`LAW_OUTPUTS`]).
+    due: OutputsDue,
 }
+
+/// Which groups of outputs a step left to be written when read.
+#[derive(Clone, Copy, Default)]
+struct OutputsDue {
+    /// Those read off the state ([`Physics::state_outputs`]).
+    state: bool,
+    /// Those that evaluate the cylinder's laws ([`LAW_OUTPUTS`]; [`Physics::outputs`]).
+    laws: bool,
+}
+
+/// The outputs that [`Physics::state_outputs`] leaves out: the port flows and the rod's
+/// slopes, which evaluate the cylinder's laws.
+const LAW_OUTPUTS: [usize; 4] = [vr::Q_A, vr::Q_B, vr::DF_ROD_DX, vr::DF_ROD_DV];
 
 impl State {
     /// The inputs in force: the value array's and the input derivative.
     fn inputs(&self) -> Inputs {
         Inputs { a_rod: self.rod_acceleration, ..inputs(&self.values) }
+    }
+
+    /// Whether the value of `index` is an output the last step left unwritten.
+    fn is_due(&self, index: usize) -> bool {
+        if !(self.due.state || self.due.laws) {
+            return false;
+        }
+        if LAW_OUTPUTS.contains(&index) {
+            self.due.laws
+        } else {
+            self.due.state && VARIABLES[index].causality == Causality::Output
+        }
+    }
+
+    /// Writes the group of outputs that holds `index` (all of them for a law's output).
+    fn write_due(&mut self, index: usize) {
+        if LAW_OUTPUTS.contains(&index) {
+            self.write_outputs();
+        } else {
+            write_outputs(&self.physics.state_outputs(), &mut self.values);
+            // The laws' outputs, written as 0 above, stay due.
+            self.due.state = false;
+        }
+    }
+
+    /// Writes every output the last step left unwritten.
+    fn write_all_due(&mut self) {
+        if self.due.state || self.due.laws {
+            self.write_outputs();
+        }
     }
 }
 
@@ -64,7 +111,13 @@ impl Model {
         let values = start_values();
         let physics = Physics::start(&start_params(), &inputs(&values), 0.0)
             .expect("the start values are valid");
-        let mut state = State { values, physics, rod_acceleration: 0.0, stale: false };
+        let mut state = State {
+            values,
+            physics,
+            rod_acceleration: 0.0,
+            stale: false,
+            due: OutputsDue::default(),
+        };
         state.write_outputs();
         Model { time: 0.0, initialized: false, state: RefCell::new(state) }
     }
@@ -88,16 +141,23 @@ impl Model {
         Some(self.reader()(index))
     }
 
-    /// Reads values by value reference (known ones: the index must be in the table) with
-    /// one look at the state for all of them; before initialisation the outputs are
-    /// brought up to date first.
+    /// Reads values by value reference (known ones: the index must be in the table); before
+    /// initialisation the outputs are brought up to date first, after a step each group of
+    /// outputs is written when one of it is first read.
     pub fn reader(&self) -> impl Fn(usize) -> f64 + '_ {
         if !self.initialized {
             self.refresh_before_start();
         }
-        let state = self.state.borrow();
         let time = self.time;
-        move |index| if index == vr::TIME { time } else { state.values[index] }
+        move |index| {
+            if index == vr::TIME {
+                return time;
+            }
+            if self.state.borrow().is_due(index) {
+                self.state.borrow_mut().write_due(index);
+            }
+            self.state.borrow().values[index]
+        }
     }
 
     /// Stores a parameter or input after checking type and range; see [`Model::set_all`].
@@ -212,7 +272,7 @@ impl Model {
         // A step that changes nothing keeps the outputs written after the last one.
         let events = match state.physics.step(&state.inputs(), self.time, step)? {
             Some(events) => {
-                state.write_outputs();
+                state.due = OutputsDue { state: true, laws: true };
                 events
             }
             None => StepEvents::default(),
@@ -340,6 +400,7 @@ impl Model {
     /// Versioned, self-checking byte form of the whole instance (no pointers).
     pub fn to_bytes(&self) -> Vec<u8> {
         self.refresh_before_start();
+        self.state.borrow_mut().write_all_due();
         let state = self.state.borrow();
         let mut body = Vec::with_capacity(16 + 8 * (N_VARIABLES + 16));
         body.extend_from_slice(&(N_VARIABLES as u32).to_le_bytes());
@@ -380,7 +441,8 @@ impl Model {
         if !r.is_at_end() {
             return Err("state has trailing bytes".into());
         }
-        let state = State { values, physics, rod_acceleration, stale: false };
+        let state =
+            State { values, physics, rod_acceleration, stale: false, due: OutputsDue::default() };
         Ok(Model { time, initialized, state: RefCell::new(state) })
     }
 }
@@ -584,6 +646,9 @@ impl State {
         changes: &mut dyn Iterator<Item = (usize, f64)>,
         time: f64,
     ) -> Result<(), String> {
+        // The outputs stay those of the last communication point: written before the
+        // coefficients they would be computed with change.
+        self.write_all_due();
         let before = self.values;
         for (index, value) in changes {
             self.values[index] = value;
@@ -600,6 +665,7 @@ impl State {
     /// Writes the physics' outputs into their value references.
     fn write_outputs(&mut self) {
         write_outputs(&self.physics.outputs(), &mut self.values);
+        self.due = OutputsDue::default();
     }
 }
 

@@ -190,6 +190,17 @@ impl Actuator {
     /// The outputs at augmented state `z` and cylinder state `cylinder` (F_rod: the force
     /// there).
     pub(crate) fn outputs_at(&self, z: &Vector, cylinder: &CylinderState) -> Outputs {
+        let mut out = self.state_outputs_at(z, cylinder);
+        let c = &self.params.cylinder;
+        cylinder::write_outputs(c, cylinder, z[XS], self.p_supply, &mut out);
+        out.f_rod = net_force(c, cylinder, 0.0)[0];
+        (out.df_rod_dx, out.df_rod_dv) = rod_port::rod_stiffness(c, cylinder, z[XS], self.p_supply);
+        out
+    }
+
+    /// The outputs read off the state without evaluating a law of the cylinder: the others
+    /// (port flows, the rod's force and its slopes) are left at 0.
+    pub(crate) fn state_outputs_at(&self, z: &Vector, cylinder: &CylinderState) -> Outputs {
         let mut out = Outputs {
             i_coil: z[I],
             u_driver: z[U],
@@ -199,10 +210,7 @@ impl Actuator {
             q_valve: valve::no_load_flow(&self.params, z[XS]),
             ..Outputs::default()
         };
-        let c = &self.params.cylinder;
-        cylinder::write_outputs(c, cylinder, z[XS], self.p_supply, &mut out);
-        out.f_rod = net_force(c, cylinder, 0.0)[0];
-        (out.df_rod_dx, out.df_rod_dv) = rod_port::rod_stiffness(c, cylinder, z[XS], self.p_supply);
+        cylinder::write_state_outputs(&self.params.cylinder, cylinder, &mut out);
         out
     }
 }

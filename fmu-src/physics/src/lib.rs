@@ -92,6 +92,16 @@ impl Physics {
         out.f_rod = self.rod_force_mean;
         out
     }
+
+    /// The outputs that are read off the state, F_rod (the mean over the last step) among
+    /// them; the port flows `q_a`, `q_b` and the rod's slopes `df_rod_dx`, `df_rod_dv`, which
+    /// evaluate the cylinder's laws, are left at 0 ([`Physics::outputs`] has them all).
+    pub fn state_outputs(&self) -> Outputs {
+        let a = &self.actuator;
+        let mut out = a.state_outputs_at(&a.z, &a.cylinder.state);
+        out.f_rod = self.rod_force_mean;
+        out
+    }
 }
 
 impl Physics {

@@ -132,8 +132,17 @@ pub(crate) fn write_outputs(
     p_supply: f64,
     out: &mut Outputs,
 ) {
+    write_state_outputs(params, state, out);
     let flows = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
     (out.q_a, out.q_b) = (flows.q_a, flows.q_b);
+}
+
+/// Writes the hydraulic side's outputs that are read off the state (not the port flows).
+pub(crate) fn write_state_outputs(
+    params: &CylinderParams,
+    state: &CylinderState,
+    out: &mut Outputs,
+) {
     out.p_a = state.p_a;
     out.p_b = state.p_b;
     out.x_piston = state.x;
