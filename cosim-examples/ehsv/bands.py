@@ -124,8 +124,9 @@ ROWS = (
     Row(10, "all 5 drivers, steady: Q_valve/i_coil (m3/s per mA)", lambda v: f"{v[0]:.6e} .. {v[1]:.6e}",
         lambda v: all(abs(g / (flow_gain() * 1e-3) - 1) <= 5e-4 for g in v), "K3 K1/Kw +-0.05 %"),
     # Row 11: exact in steady motion and in the equations; what is left is the integrator's
-    # error (Rodas4 at rtol 1e-7, or fixed_cost's Rodas3), and for the balance that and the
-    # trapezoids on 10 us samples.
+    # error (Rodas4 at rtol 1e-7, or fixed_cost's linearly implicit trapezoidal step, which
+    # figures.py runs at a smaller solver.h_internal for this row: ROW11_H_INTERNAL), and
+    # for the balance that and the trapezoids on 10 us samples.
     Row(11, "flow loop, steady: |v - Q_A/A_A|/v; volume balance", lambda v: f"{v[0]:.1e}; {v[1]:.1e}",
         lambda v: v[0] <= 1e-7 and v[1] <= 1e-9, "<= 1e-7; <= 1e-9"),
 )  # fmt: skip
