@@ -83,10 +83,10 @@ fn compare_with(
 }
 
 /// Driver, coil and valve (the first three outputs) go by exact propagators between
-/// boundaries: on every linear driver within 1e-9 of their range on the sines (whose
-/// command changes every step: the op-amp's slews from a step's start end at an exact
-/// root), within 1e-5 on the squares (the slews of their steps reach the rails, those mode
-/// changes placed by interpolation). At the default internal step (50 us) the piston is
+/// boundaries: on every linear driver within 1e-5 of their range (the sines' command
+/// changes every step: the op-amp's brief slews taken as jumps with their volt-seconds
+/// made good; the squares' slews reach the rails, those mode changes placed by
+/// interpolation). At the default internal step (50 us) the piston is
 /// within 1e-3 of its range and the pressures within 1e-2 on the 2 Hz waves (which drive the
 /// piston into its end stops) and the 20 Hz sines; the 20 Hz squares' pressure spikes, a
 /// chamber emptied onto the cavitation floor at every reversal, within 2.5e-2
@@ -102,8 +102,7 @@ fn fixed_cost_follows_exact_on_sines_and_squares() {
                 let e = compare(&[driver(kind)], 0.2, 1e-4, input);
                 let case = format!("{kind} {shape} {hz} Hz: {}", show(&e));
                 println!("{case}");
-                let driver_bound = if shape == "sine" { 1e-9 } else { 1e-5 };
-                assert!(e[..3].iter().all(|&x| x < driver_bound), "{case}");
+                assert!(e[..3].iter().all(|&x| x < 1e-5), "{case}");
                 assert!(e[5] < 1e-3, "{case}");
                 let pressures = if hz > 10.0 && shape == "square" { 2.5e-2 } else { 1e-2 };
                 assert!(e[3] < pressures && e[4] < pressures, "{case}");
@@ -125,8 +124,9 @@ fn fixed_cost_follows_exact_in_the_loops() {
         compare(&[driver("opamp_pi"), control_mode("position")], 1.0, 1e-4, &|t| (vr::X_REF, s(t)));
     println!("position loop: {}", show(&position));
     assert!(position[5] < 1e-5, "{}", show(&position));
-    // The flow loop samples the valve alone: driver, coil and valve exact to rounding.
-    assert!(flow[..3].iter().all(|&x| x < 1e-9), "{}", show(&flow));
+    // The flow loop samples the valve alone: driver, coil and valve as exact as the brief
+    // slews of its samples, taken as jumps, let them be.
+    assert!(flow[..3].iter().all(|&x| x < 1e-5), "{}", show(&flow));
     for e in [flow, position] {
         assert!(e.iter().all(|&x| x < 5e-3), "{}", show(&e));
     }
