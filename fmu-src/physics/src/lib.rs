@@ -55,7 +55,7 @@ impl Physics {
         let actuator = Actuator::start(params, inputs, start_time)?;
         let integrator = ChosenIntegrator::new(params, &actuator);
         let rod_force_mean = actuator.rod_force();
-        Ok(Physics { actuator, integrator, resting: None, rod_force_mean })
+        Ok(Physics { actuator, integrator, resting: None, rod_force_mean, rod_force_end: None })
     }
 
     /// Builds ahead the propagators that a first step of `step` seconds with these inputs
@@ -122,9 +122,14 @@ impl Physics {
         let c = &self.actuator.params.cylinder;
         c.check_supply(inputs.p_supply)?;
         let relief_before = cylinder::relief_open(c, &self.actuator.cylinder.state);
-        let force_before = self.actuator.take_rod_motion(inputs)?;
+        let force_before = match self.rod_force_end {
+            Some(force) if c.port == RodPort::Force => force,
+            _ => self.actuator.take_rod_motion(inputs)?,
+        };
         let mut events = self.advance(inputs, t_start, step)?;
-        self.rod_force_mean = 0.5 * (force_before + self.actuator.rod_force());
+        let force_after = self.actuator.rod_force();
+        self.rod_force_mean = 0.5 * (force_before + force_after);
+        self.rod_force_end = Some(force_after);
         let a = &self.actuator;
         let relief_after = cylinder::relief_open(&a.params.cylinder, &a.cylinder.state);
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);

@@ -18,6 +18,10 @@ pub struct Physics {
     /// The force on the rod averaged over the last step (an output, carried across a saved
     /// state by the value array, so not part of the state bytes).
     pub(crate) rod_force_mean: f64,
+    /// With the force port, the force on the rod at the state the last step ended in (a
+    /// pure cache: the next step starts from that state, so its starting force is this one;
+    /// `None` where nothing is known, after a retune or a restore).
+    pub(crate) rod_force_end: Option<f64>,
 }
 
 /// Inputs and step size as bits (see `Physics::resting`).

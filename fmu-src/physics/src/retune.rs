@@ -66,8 +66,9 @@ impl Physics {
             self.integrator.count_work(&mut a.work);
             self.integrator = ChosenIntegrator::new(params, a);
         }
-        // The same step again may no longer change nothing.
+        // The same step again may no longer change nothing, nor the rod's force be the same.
         self.resting = None;
+        self.rod_force_end = None;
         Ok(())
     }
 }

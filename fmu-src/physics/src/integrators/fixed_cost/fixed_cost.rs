@@ -147,10 +147,8 @@ impl FixedCostIntegrator {
                 Some(end) => end,
                 None => self.propagate(actuator, left, left == h)?,
             };
-            let crossing = (switches < MAX_SWITCHES)
-                .then(|| first_crossing(actuator, &z1))
-                .flatten()
-                .filter(|&fraction| fraction < 1.0);
+            let (crossing, inside) = guards_along(actuator, &z1);
+            let crossing = crossing.filter(|&fraction| switches < MAX_SWITCHES && fraction < 1.0);
             if let Some(fraction) = crossing {
                 let tau = left * fraction;
                 z1 = self.propagate(actuator, tau, false)?;
@@ -158,7 +156,7 @@ impl FixedCostIntegrator {
             }
             // Inside every guard of its mode the state stays in that mode: nothing to clip
             // or choose again.
-            if crossing.is_some() || !inside_guards(actuator, &z1) {
+            if crossing.is_some() || !inside {
                 let before = actuator.mode;
                 driver::clip_overshoot(&actuator.params, &mut z1, before, crossing.is_some());
                 actuator.settle(&mut z1);
@@ -279,23 +277,25 @@ fn brief_slew_as_a_jump(actuator: &mut Actuator, tau: f64, events: &mut StepEven
 }
 
 /// Where in a propagation from the actuator's state to `z1` the first of its mode's guards
-/// crossed zero upwards, as a fraction of the span (linear interpolation); `None` if none did.
-fn first_crossing(actuator: &Actuator, z1: &Vector) -> Option<f64> {
+/// crossed zero upwards, as a fraction of the span (linear interpolation; `None` if none
+/// did), and whether every guard is negative at `z1`. A guard's start is looked at only
+/// where its end is positive.
+fn guards_along(actuator: &Actuator, z1: &Vector) -> (Option<f64>, bool) {
     let c = &actuator.params;
     let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
-    (0..sys.n_guards)
-        .filter_map(|g| {
-            let (v0, v1) = (sys.guard_value(g, &actuator.z), sys.guard_value(g, z1));
-            (v0 < 0.0 && v1 > 0.0).then(|| v0 / (v0 - v1))
-        })
-        .reduce(f64::min)
-}
-
-/// Whether every guard of the actuator's mode is negative at `z`.
-fn inside_guards(actuator: &Actuator, z: &Vector) -> bool {
-    let c = &actuator.params;
-    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
-    (0..sys.n_guards).all(|g| sys.guard_value(g, z) < 0.0)
+    let (mut first, mut inside) = (None, true);
+    for g in 0..sys.n_guards {
+        let v1 = sys.guard_value(g, z1);
+        inside &= v1 < 0.0;
+        if v1 > 0.0 {
+            let v0 = sys.guard_value(g, &actuator.z);
+            if v0 < 0.0 {
+                let fraction = v0 / (v0 - v1);
+                first = Some(first.map_or(fraction, |f: f64| f.min(fraction)));
+            }
+        }
+    }
+    (first, inside)
 }
 
 /// The spool's position in the actuator's current mode (held at a stop where it has one).
