@@ -44,19 +44,10 @@ struct State {
     /// Before initialisation: parameters, inputs or the start time changed since `physics`
     /// and the outputs were built.
     stale: bool,
-    /// Outputs not yet written since the last step: they are computed when first read (a
-    /// host reads a few of them each step, and the port flows and the rod's slopes evaluate
-    /// the cylinder's laws), in two groups ([`LAW_OUTPUTS`]).
-    due: OutputsDue,
-}
-
-/// Which groups of outputs a step left to be written when read.
-#[derive(Clone, Copy, Default)]
-struct OutputsDue {
-    /// Those read off the state ([`Physics::state_outputs`]).
-    state: bool,
-    /// Those that evaluate the cylinder's laws ([`LAW_OUTPUTS`]; [`Physics::outputs`]).
-    laws: bool,
+    /// The outputs that evaluate the cylinder's laws ([`LAW_OUTPUTS`]: the port flows and the
+    /// rod's slopes) are not yet written since the last step: they are computed when first
+    /// read (a host reads a few outputs each step, most of them read off the state).
+    laws_due: bool,
 }
 
 /// The outputs that [`Physics::state_outputs`] leaves out: the port flows and the rod's
@@ -69,32 +60,9 @@ impl State {
         Inputs { a_rod: self.rod_acceleration, ..inputs(&self.values) }
     }
 
-    /// Whether the value of `index` is an output the last step left unwritten.
-    fn is_due(&self, index: usize) -> bool {
-        if !(self.due.state || self.due.laws) {
-            return false;
-        }
-        if LAW_OUTPUTS.contains(&index) {
-            self.due.laws
-        } else {
-            self.due.state && VARIABLES[index].causality == Causality::Output
-        }
-    }
-
-    /// Writes the group of outputs that holds `index` (all of them for a law's output).
-    fn write_due(&mut self, index: usize) {
-        if LAW_OUTPUTS.contains(&index) {
-            self.write_outputs();
-        } else {
-            write_outputs(&self.physics.state_outputs(), &mut self.values);
-            // The laws' outputs, written as 0 above, stay due.
-            self.due.state = false;
-        }
-    }
-
-    /// Writes every output the last step left unwritten.
+    /// Writes the outputs the last step left unwritten.
     fn write_all_due(&mut self) {
-        if self.due.state || self.due.laws {
+        if self.laws_due {
             self.write_outputs();
         }
     }
@@ -111,13 +79,8 @@ impl Model {
         let values = start_values();
         let physics = Physics::start(&start_params(), &inputs(&values), 0.0)
             .expect("the start values are valid");
-        let mut state = State {
-            values,
-            physics,
-            rod_acceleration: 0.0,
-            stale: false,
-            due: OutputsDue::default(),
-        };
+        let mut state =
+            State { values, physics, rod_acceleration: 0.0, stale: false, laws_due: false };
         state.write_outputs();
         Model { time: 0.0, initialized: false, state: RefCell::new(state) }
     }
@@ -142,8 +105,8 @@ impl Model {
     }
 
     /// Reads values by value reference (known ones: the index must be in the table); before
-    /// initialisation the outputs are brought up to date first, after a step each group of
-    /// outputs is written when one of it is first read.
+    /// initialisation the outputs are brought up to date first, after a step the laws'
+    /// outputs when one of them is first read.
     pub fn reader(&self) -> impl Fn(usize) -> f64 + '_ {
         if !self.initialized {
             self.refresh_before_start();
@@ -153,8 +116,8 @@ impl Model {
             if index == vr::TIME {
                 return time;
             }
-            if self.state.borrow().is_due(index) {
-                self.state.borrow_mut().write_due(index);
+            if LAW_OUTPUTS.contains(&index) && self.state.borrow().laws_due {
+                self.state.borrow_mut().write_outputs();
             }
             self.state.borrow().values[index]
         }
@@ -272,7 +235,9 @@ impl Model {
         // A step that changes nothing keeps the outputs written after the last one.
         let events = match state.physics.step(&state.inputs(), self.time, step)? {
             Some(events) => {
-                state.due = OutputsDue { state: true, laws: true };
+                write_outputs(&state.physics.state_outputs(), &mut state.values);
+                // The laws' outputs, written as 0 just now, are computed when read.
+                state.laws_due = true;
                 events
             }
             None => StepEvents::default(),
@@ -441,8 +406,7 @@ impl Model {
         if !r.is_at_end() {
             return Err("state has trailing bytes".into());
         }
-        let state =
-            State { values, physics, rod_acceleration, stale: false, due: OutputsDue::default() };
+        let state = State { values, physics, rod_acceleration, stale: false, laws_due: false };
         Ok(Model { time, initialized, state: RefCell::new(state) })
     }
 }
@@ -665,7 +629,7 @@ impl State {
     /// Writes the physics' outputs into their value references.
     fn write_outputs(&mut self) {
         write_outputs(&self.physics.outputs(), &mut self.values);
-        self.due = OutputsDue::default();
+        self.laws_due = false;
     }
 }
 
