@@ -4,8 +4,9 @@ and tests run them with, on the plugin or, as the reference, on the FMU.
 
 * ``load_plugin()``: ``mujoco.mj_loadPluginLibrary`` on target/release/libehsv_mujoco.so
   (``cargo build --release -p ehsv-mujoco``; EHSV_MUJOCO_PLUGIN names another path),
-* ``OUTPUTS``: the outputs in each actuator's plugin_state slots, in order (docs/mujoco.md),
-  ``outputs(model, data, name)``: one output of every plugin actuator,
+* ``outputs(model, data, name)``: one output of every plugin actuator (each actuator's
+  plugin_state slots hold the FMU's outputs in the table's order, ``contract.OUTPUTS``:
+  docs/mujoco.md),
 * ``actuator_block``: the ``<actuator>`` of plugin actuators on the cylinders' tendons,
 * ``load_model(path, actuators, timestep, config)``: an MJCF file as written (plugin
   actuators) or with each plugin actuator turned into a ``general`` force actuator on the
@@ -25,30 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from .contract import OUTPUTS
 from .robot import MONITORED, Hydraulics, Lever, LeverSet, Record, Timing
 
 ROOT = Path(__file__).resolve().parents[2]
 MJCF_DIR = ROOT / "cosim-examples" / "mjcf"
 PLUGIN_NAME = "ehsv.actuator"
-#: the FMU's output variables in table order: slots 0.. of each actuator's plugin_state
-OUTPUTS = (
-    "i_coil",
-    "u_driver",
-    "driver_saturated",
-    "x_flapper",
-    "x_spool",
-    "Q_valve",
-    "Q_A",
-    "Q_B",
-    "p_A",
-    "p_B",
-    "x_piston",
-    "v_piston",
-    "F_hydraulic",
-    "F_rod",
-    "dF_rod_dx",
-    "dF_rod_dv",
-)
 _loaded: list[str] = []
 
 
@@ -159,8 +142,8 @@ def length_mid(path: Path) -> dict[str, float]:
 
 
 def outputs(model, data, name: str, actuators: Sequence[int]) -> np.ndarray:
-    """Output ``name`` (one of OUTPUTS) of the plugin actuators ``actuators`` (ids)."""
-    k = OUTPUTS.index(name)
+    """Output ``name`` (one of the FMU's outputs) of the plugin actuators ``actuators`` (ids)."""
+    k = list(OUTPUTS).index(name)
     adr = [model.plugin_stateadr[model.actuator_plugin[a]] + k for a in actuators]
     return data.plugin_state[adr].copy()
 

@@ -50,10 +50,8 @@ pub(crate) fn step(
     Ok(())
 }
 
-/// The state after one step of `h` from `y0` (see the module documentation). A step whose
-/// end-stop contact switches (the piston reaching a stop's face, where the damper's force
-/// jumps in, or the contact force falling to zero, a kink) is cut there, the switch placed
-/// by one interpolation along the step, and the rest taken from a new linearisation.
+/// The state after one internal step of `h` from `y0` (see the module documentation): one
+/// linearly implicit step ([`advance_once`]), two of half the size in a stop's contact.
 pub(crate) fn advance(
     params: &CylinderParams,
     y0: &Vec4,
@@ -72,6 +70,11 @@ pub(crate) fn advance(
     advance_once(params, y0, spool, h, loads)
 }
 
+/// One linearly implicit step of `h` from `y0`. A step whose end-stop contact switches (the
+/// piston reaching a stop's face, where the damper's force jumps in, or the contact force
+/// falling to zero, a kink) or whose chamber pressure crosses a kink of its laws
+/// ([`pressure_switch`]) is cut there, the switch placed by one interpolation along the
+/// step, and the rest taken from a new linearisation.
 fn advance_once(
     params: &CylinderParams,
     y0: &Vec4,
