@@ -143,7 +143,7 @@ impl Model {
         let state = self.state.get_mut();
         let changes = changes.into_iter();
         // Everything that can refuse a value alone is checked before anything is written.
-        let mut retune = false;
+        let (mut retune, mut moved) = (false, false);
         let (mut x_ref, mut x_rod) = (state.values[vr::X_REF], state.values[vr::X_ROD]);
         for (index, value) in changes.clone() {
             // A value the model holds already was accepted when it was set (or is a start
@@ -157,9 +157,10 @@ impl Model {
                 vr::X_ROD => x_rod = value,
                 _ => {}
             }
+            moved |= !held && matches!(index, vr::X_REF | vr::X_ROD);
         }
-        if initialized {
-            // The geometry is fixed once initialised.
+        if initialized && moved {
+            // The geometry is fixed once initialised: positions held fitted it when set.
             check_positions_fit(x_ref, x_rod, &state.values)?;
         }
         if initialized && retune {
