@@ -2,11 +2,13 @@
 //! instructions of a communication step with callgrind (issue 37's measure: instruction
 //! counts do not move with the machine's load). Per instance and step of `h`:
 //! `fmi2SetReal` of the workload's inputs, `fmi2DoStep`, `fmi2GetReal` of i_coil, x_piston,
-//! p_A and Q_valve ([`READ`]), each group inside one call of [`communication_step`], which
+//! p_A and Q_valve ([`READ`]), each group inside one call of `communication_step`, which
 //! is never inlined. The extern "C" functions are called directly (the rlib exposes them),
 //! not through dlopen: the same code as the cdylib's, without the PLT.
 //!
-//!     valgrind --tool=callgrind --toggle-collect='*communication_step*' PROGRAM ...
+//! ```text
+//! valgrind --tool=callgrind --toggle-collect='*communication_step*' PROGRAM ...
+//! ```
 //!
 //! counts the instructions inside those calls only (start-up, initialisation, the signals
 //! and the driving loop fall outside); total Ir / [`run`]'s calls = instructions per step.
