@@ -206,7 +206,7 @@ pub const SOLVER_METHOD_TYPE: Enumeration = Enumeration {
     description: "The integrator between time events",
     items: &[
         ("exact", "driver, coil and valve exact, the cylinder by adaptive Rosenbrock: results independent of the communication step"),
-        ("fixed_cost", "work fixed by the step size for real-time rigs: internal steps of at most solver.h_internal, the cylinder by ROS2 (docs/solvers.md)"),
+        ("fixed_cost", "work fixed by the step size for real-time rigs: internal steps of at most solver.h_internal, the cylinder by one linearly implicit trapezoidal step each (docs/solvers.md)"),
     ],
 };
 
@@ -693,10 +693,10 @@ variable_table! {
     // The integrator (appended; docs/solvers.md): exact for design studies and the paper's
     // figures, fixed_cost for real-time rigs and long robot runs.
     SOLVER_METHOD => param[solver_method] coded: enumeration("solver.method", &SOLVER_METHOD_TYPE, "Integrator: exact (results independent of the communication step) or fixed_cost (work fixed by the step size, for real-time rigs)"),
-    // fixed_cost's internal step (appended). The default 1e-4 s is one internal step per usual
-    // communication step (the real-time budget); within the digital loops' 50 us periods it is
-    // one per period. The accuracy goes with its square (the trapezoidal step), the cost with
-    // its inverse: docs/solvers.md gives the curve to pick a point on.
+    // fixed_cost's internal step (appended). The default 5e-5 s is the digital loops' period:
+    // one internal step per loop sample, two per 1e-4 s communication step. The accuracy goes
+    // with its square on smooth motion (the trapezoidal step), the cost with its inverse:
+    // docs/solvers.md gives the curve to pick a point on.
     SOLVER_H_INTERNAL => param[solver_h_internal] real: param("solver.h_internal", Some("s"), "Longest internal step of solver.method = fixed_cost: each span between time events is cut into equal steps no longer than this; not read by exact")
         .range(Some(1.0e-6), Some(1.0e-3)),
 }
