@@ -160,7 +160,7 @@ pub(crate) fn exp_augmented(a: &Mat) -> Option<Mat> {
 fn exp_of(a: Augmented) -> Option<Mat> {
     let [a2, a4, a6] = even_powers(&a);
     let identity = Augmented::identity();
-    match plan(a4.norm1(), a6.norm1()) {
+    match plan(a4.norm1(), a6.norm1())? {
         (13, squarings) => {
             let scale = 2f64.powi(-squarings);
             let (a2, a4, a6) =
@@ -190,15 +190,20 @@ fn even_powers(a: &Augmented) -> [Augmented; 3] {
 /// The Pade degree and the number of squarings for a matrix with `||A^4|| = n4` and
 /// `||A^6|| = n6`. `||A^8|| <= n4^2` and `||A^10|| <= n4 n6` stand in for the norms the
 /// algorithm would estimate: upper bounds, so never too little scaling.
-fn plan(n4: f64, n6: f64) -> (usize, i32) {
+fn plan(n4: f64, n6: f64) -> Option<(usize, i32)> {
     let eta = n4.powf(0.25).max(n6.powf(1.0 / 6.0));
     if let Some(&(degree, _)) = THETA.iter().find(|&&(_, theta)| eta <= theta) {
-        return (degree, 0);
+        return Some((degree, 0));
     }
     let eta_13 = n4.powf(0.25).max((n4 * n6).powf(0.1));
-    let squarings = if eta_13 > THETA_13 { (eta_13 / THETA_13).log2().ceil() as i32 } else { 0 };
-    (13, squarings)
+    let squarings = if eta_13 > THETA_13 { (eta_13 / THETA_13).log2().ceil() } else { 0.0 };
+    // Past f64's range (a parameter far beyond physics, a slew rate of 1e300 V/s) the count
+    // is infinite, 2^31 squarings as an integer: no exponential, the step is refused.
+    (squarings <= MAX_SQUARINGS).then_some((13, squarings as i32))
 }
+
+/// More squarings than any finite norm asks for (f64's largest is 2^1024).
+const MAX_SQUARINGS: f64 = 1100.0;
 
 /// `r_m(a) = (V - U)^-1 (V + U)` from the even powers `[I, a^2, a^4, a^6, a^8]` (`a^8` only
 /// for degree 9), squared `squarings` times.
@@ -346,7 +351,7 @@ mod tests {
                         );
                     }
                     let [_, a4, a6] = even_powers(&Augmented::of_dynamics(&scaled));
-                    let (degree, squarings) = plan(a4.norm1(), a6.norm1());
+                    let (degree, squarings) = plan(a4.norm1(), a6.norm1()).unwrap();
                     plans.insert((degree, squarings > 0));
                 }
             }
