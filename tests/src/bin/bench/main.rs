@@ -625,6 +625,9 @@ struct Results {
     slowest: Vec<String>,
     /// The lines about each row against the targets.
     targets: Vec<String>,
+    /// The exact method's RTFcpu on the workload just measured (FMI 2, at the targets' step),
+    /// which fixed_cost's is judged against.
+    exact_rtf: Option<f64>,
 }
 
 /// Every selected workload at every step size, its rows printed as they are measured.
@@ -657,8 +660,12 @@ fn measure_method(
             rows.iter().for_each(report::print);
             results.slowest.extend(rows.iter().filter_map(report::slowest_steps));
             let current_mode = w.control_mode == workloads::CURRENT;
+            if w.solver_method != workloads::FIXED_COST {
+                results.exact_rtf = rows.iter().find_map(report::rtf_at_target);
+            }
+            let exact_rtf = results.exact_rtf;
             let verdict = |row| match w.solver_method {
-                workloads::FIXED_COST => report::fixed_cost_targets(row, current_mode),
+                workloads::FIXED_COST => report::fixed_cost_targets(row, current_mode, exact_rtf),
                 _ => report::targets(row),
             };
             results.targets.extend(rows.iter().filter_map(verdict));

@@ -1,18 +1,22 @@
 //! The fixed-cost integrator behind the seam ([`crate::integrators::seam`]): work fixed by the
 //! segment's length, for real-time rigs. Each segment is cut into `n` equal internal steps,
-//! `n = ceil(span / h_internal)` (`solver.h_internal`, 1e-4 s by default: one internal
-//! step per 1e-4 s communication step, one per 50 us period of the digital loops), and
-//! where the internal step divides the communication step the cuts do not depend on it.
+//! `n = ceil(span / h_internal)` (`solver.h_internal`, 50 us by default: the digital
+//! loops' period, so every control mode steps on the same grid, two internal steps per
+//! 1e-4 s communication step), and where the internal step divides the communication step
+//! the cuts do not depend on it.
 //! Per internal step:
 //! * driver, coil and valve go by the mode's propagator over the step (cached per mode
 //!   and span; the whole steps' built when the first step is prepared); a guard that
 //!   crossed inside the step is placed by one linear interpolation, the mode chosen again
 //!   there ([`Actuator::settle`]) and the rest of the step taken in the new one: no event
 //!   search; the parts of a step either side of such a change go by the mode's ladder of
-//!   prebuilt exponentials ([`super::dyadic_ladder`]), so no doStep builds one;
+//!   prebuilt exponentials ([`super::dyadic_ladder`]), so no doStep builds one; a brief
+//!   slew from the step's start is taken as a jump with its volt-seconds made good
+//!   ([`brief_slew_as_a_jump`]);
 //! * the cylinder (stiff: eigenvalues to -1.4e5 1/s) takes one linearly implicit step of
-//!   [`super::lean_cylinder`] (cut where the piston meets a stop or a chamber enters the
-//!   cavitation band; in halves in a stop's contact), the spool on the straight line
+//!   [`super::lean_cylinder`] (cut where the piston meets or leaves a stop, where a chamber
+//!   enters the cavitation band or passes a relief valve's cracking pressure; in halves in a
+//!   stop's contact), the spool on the straight line
 //!   between its positions at the step's ends.
 
 use crate::actuator::{current_system, system_key, Actuator};

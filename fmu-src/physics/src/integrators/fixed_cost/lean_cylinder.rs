@@ -11,12 +11,14 @@
 //! `gamma = 1/2` this is the linearly implicit trapezoidal rule: second order, A-stable,
 //! the hydraulic resonance neither damped nor excited. Its stiff modes (the orifices' laminar
 //! slope near balance, the friction's creep band) are damped but flip sign from step to step
-//! where `h |lambda| > 2`; slightly above one half ([`GAMMA`]) they decay faster, at a
-//! first-order error term `(gamma - 1/2) h^2 J f` far below the bound. Where a step crosses
-//! the friction's creep band or a chamber heads into the cavitation band, the slope of
-//! that term is replaced by its secant over the step, as the Rosenbrock path does
-//! ([`secant_friction`], [`secant_cavitation`]); a pressure that ends below the cavitation
-//! floor is held at it.
+//! where `h |lambda| > 2` (above one half they would decay faster, at a first-order error
+//! `(gamma - 1/2) h^2 J f`: 0.52 to 1 were all less accurate on the impacts, docs/solvers.md).
+//! Where a step crosses the friction's creep band, a chamber heads into the cavitation band
+//! or rises into its relief valve's law, that slope is replaced by its secant over the step
+//! ([`secant_friction`], [`secant_cavitation`], [`secant_relief`]); a pressure that ends
+//! below the cavitation floor is held at it. A step is cut where the piston meets or leaves
+//! a stop's contact or a pressure crosses a kink of its laws, and taken in halves in a
+//! stop's contact ([`advance`]).
 
 use crate::actuator::Actuator;
 use crate::components::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, PA, PB, V, X};
@@ -25,8 +27,9 @@ use crate::components::cylinder_terms::{chamber_volumes, endstop_force, relief_f
 use crate::held_inputs::HeldInputs;
 use crate::params::RodPort;
 
-/// The implicitness of the step: 1/2 is the trapezoidal rule; a little above it the stiff
-/// modes' factor `(1 - (1 - gamma) z) / (1 - gamma z)` stays further from -1.
+/// The implicitness of the step: 1/2 is the trapezoidal rule (above it the stiff modes'
+/// factor `(1 - (1 - gamma) z) / (1 - gamma z)` stays further from -1, but the impacts lose
+/// accuracy).
 pub(crate) const GAMMA: f64 = 0.5;
 
 /// Advances the actuator's cylinder by `h`, the spool moving from `spool[0]` to `spool[1]`
