@@ -552,20 +552,11 @@ fn print_instructions_only(o: &Options) -> Result<(), String> {
     println!("{}", instructions::HOPSAN_REFERENCE);
     println!("{}", report::INSTRUCTIONS_NOTE);
     println!("{:<26} {:>5} {:>10} {:>12}", "workload", "h", "method", "instr/step");
-    for &h in &o.steps {
-        for w in workloads::all() {
-            let w = Workload { solver_rtol: o.fmu_rtol, h_internal: o.h_internal, ..w };
-            if !selected(o, &w, h) {
-                continue;
-            }
-            for &method in &o.methods {
-                let w = w.with_method(method);
-                let per_step = instructions::per_step(&w, o.instr_steps, h)?;
-                let method = instructions::method_name(method);
-                let count = report::instructions(Some(per_step));
-                println!("{:<26} {h:>5.0e} {method:>10} {count:>12}", w.name);
-            }
-        }
+    for (h, w) in selected_runs(o) {
+        let per_step = instructions::per_step(&w, o.instr_steps, h)?;
+        let method = instructions::method_name(w.solver_method);
+        let count = report::instructions(Some(per_step));
+        println!("{:<26} {h:>5.0e} {method:>10} {count:>12}", w.name);
     }
     Ok(())
 }
@@ -633,18 +624,25 @@ struct Results {
 /// Every selected workload at every step size, its rows printed as they are measured.
 fn measure_all(o: &Options, fmus: &[Fmu], cvode: Option<&peer::Api>) -> Results {
     let mut results = Results::default();
+    for (h, w) in selected_runs(o) {
+        measure_method(o, (fmus, cvode), &w, h, &mut results);
+    }
+    results
+}
+
+/// Every selected workload, with each method asked for, at every step size, in the order
+/// the bench runs them: `(h, workload)`.
+fn selected_runs(o: &Options) -> Vec<(f64, Workload)> {
+    let mut runs = Vec::new();
     for &h in &o.steps {
         for w in workloads::all() {
             let w = Workload { solver_rtol: o.fmu_rtol, h_internal: o.h_internal, ..w };
-            if !selected(o, &w, h) {
-                continue;
-            }
-            for &method in &o.methods {
-                measure_method(o, (fmus, cvode), &w.with_method(method), h, &mut results);
+            if selected(o, &w, h) {
+                runs.extend(o.methods.iter().map(|&method| (h, w.with_method(method))));
             }
         }
     }
-    results
+    runs
 }
 
 /// One workload through one method at `h`: its rows printed and their lines kept.
