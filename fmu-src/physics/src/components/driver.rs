@@ -90,9 +90,18 @@ pub(crate) fn driver_rows(c: &Coefficients, mode: Mode, a: &mut Mat) {
         Mode::Switched => {}
         Mode::SlewUp | Mode::SlewDown => {
             a.set_row(UI, &integrate.transpose());
-            a[(U, ONE)] = if mode == Mode::SlewUp { c.slew_rate } else { -c.slew_rate };
+            a[(U, ONE)] = slew_velocity(c, mode);
         }
         Mode::Ideal | Mode::Voltage | Mode::HighFrozen | Mode::LowFrozen => {}
+    }
+}
+
+/// The output's rate in a slewing mode (V/s): the slew rate, up or down.
+pub(crate) fn slew_velocity(c: &Coefficients, mode: Mode) -> f64 {
+    if mode == Mode::SlewUp {
+        c.slew_rate
+    } else {
+        -c.slew_rate
     }
 }
 

@@ -179,7 +179,8 @@ impl FixedCostIntegrator {
     /// exact, no search), the state is taken there and settled, and the linear mode's end of
     /// the step is its start pulled back to the step's ([`slew_end::pulled_back`]) through
     /// the whole step's propagator (where the pair does not qualify `None`: the rest goes by
-    /// the ladder). Its end and that state; `None` for any other step.
+    /// the ladder). Its end and that state; `None` for any other step. A slew that ends
+    /// within [`BRIEF_SLEW`] of the step is taken as a jump instead (its end 0, no state).
     fn slew_from_start(
         &mut self,
         actuator: &mut Actuator,
@@ -189,11 +190,11 @@ impl FixedCostIntegrator {
         let Some(tau) = self.slew_end(actuator, h) else {
             return Ok(None);
         };
-        let (start, from) = (actuator.z, actuator.mode);
         if tau <= h * BRIEF_SLEW {
             brief_slew_as_a_jump(actuator, tau, events);
             return Ok(Some((0.0, None)));
         }
+        let (start, from) = (actuator.z, actuator.mode);
         let mut z1 = self.propagate(actuator, tau, false)?;
         driver::clip_overshoot(&actuator.params, &mut z1, from, true);
         actuator.settle(&mut z1);
@@ -222,7 +223,7 @@ impl FixedCostIntegrator {
         let exit = slew_end::exit(&self.slew_exits, actuator.mode, Mode::Linear)?;
         let (c, z) = (&actuator.params, &actuator.z);
         let tau = slew_end::end_time(c, exit, z)?;
-        let rate = if actuator.mode == Mode::SlewUp { c.slew_rate } else { -c.slew_rate };
+        let rate = driver::slew_velocity(c, actuator.mode);
         (tau < h && (z[U] + rate * tau).abs() < z[RAIL]).then_some(tau)
     }
 
@@ -270,8 +271,7 @@ const BRIEF_SLEW: f64 = 1.0 / 16.0;
 /// defaults).
 fn brief_slew_as_a_jump(actuator: &mut Actuator, tau: f64, events: &mut StepEvents) {
     let c = &actuator.params;
-    let rate = if actuator.mode == Mode::SlewUp { c.slew_rate } else { -c.slew_rate };
-    let from = actuator.mode;
+    let (rate, from) = (driver::slew_velocity(c, actuator.mode), actuator.mode);
     let mut z = actuator.z;
     z[I] -= 0.5 * rate * tau * tau / c.inductance;
     driver::project_onto(c, &actuator.hbridge, &mut z, Mode::Linear);
