@@ -42,33 +42,36 @@ pub(crate) fn step(
 ) -> Result<(), String> {
     let params = &actuator.params.cylinder;
     let y0 = actuator.cylinder.state.to_array();
-    let y1 = advance(params, &y0, spool, h, (inputs.p_supply, inputs.load));
+    let (y1, steps) = advance(params, &y0, spool, h, (inputs.p_supply, inputs.load));
     if !y1.iter().all(|v| v.is_finite()) {
         return Err("the cylinder's state is not finite; step refused".into());
     }
     actuator.cylinder.state = CylinderState::from_array(&y1);
-    actuator.work.steps_accepted += 1;
-    actuator.work.jacobians += 1;
-    actuator.work.factorisations += 1;
+    // Each linearised step: one Jacobian and one solve of its 4x4.
+    actuator.work.steps_accepted += steps;
+    actuator.work.jacobians += steps;
+    actuator.work.factorisations += steps;
     Ok(())
 }
 
 /// The state after one internal step of `h` from `y0` (see the module documentation): one
-/// linearly implicit step ([`advance_once`]), two of half the size in a stop's contact.
+/// linearly implicit step ([`advance_once`]), two of half the size in a stop's contact;
+/// with the number of linearised steps taken (a cut step takes two).
 pub(crate) fn advance(
     params: &CylinderParams,
     y0: &Vec4,
     spool: [f64; 2],
     h: f64,
     loads: (f64, f64),
-) -> Vec4 {
+) -> (Vec4, u64) {
     if params.port == RodPort::Force && contact_force(params, y0) != 0.0 {
         // In a stop's contact (1e8 N/m against the load: h w = 0.45 at 1e-4 s) in halves,
         // held there too: in one step the 2 Hz squares' p_B was 1.6e-2 of its range off
         // (4.8e-3 in halves), the pressure changing while the valve reverses.
         let middle = 0.5 * (spool[0] + spool[1]);
-        let y_half = advance_once(params, y0, [spool[0], middle], 0.5 * h, loads);
-        return advance_once(params, &y_half, [middle, spool[1]], 0.5 * h, loads);
+        let (y_half, first) = advance_once(params, y0, [spool[0], middle], 0.5 * h, loads);
+        let (y1, second) = advance_once(params, &y_half, [middle, spool[1]], 0.5 * h, loads);
+        return (y1, first + second);
     }
     advance_once(params, y0, spool, h, loads)
 }
@@ -77,27 +80,23 @@ pub(crate) fn advance(
 /// piston reaching a stop's face, where the damper's force jumps in, or the contact force
 /// falling to zero, a kink) or whose chamber pressure crosses a kink of its laws
 /// ([`pressure_switch`]) is cut there, the switch placed by one interpolation along the
-/// step, and the rest taken from a new linearisation.
+/// step, and the rest taken from a new linearisation (two linearised steps, else one).
 fn advance_once(
     params: &CylinderParams,
     y0: &Vec4,
     spool: [f64; 2],
     h: f64,
     loads: (f64, f64),
-) -> Vec4 {
+) -> (Vec4, u64) {
     let linear = Linearised::at(params, y0, spool, h, loads);
     let y1 = linear.step(params, y0, h);
     if params.port == RodPort::Motion {
-        return y1;
+        return (y1, 1);
     }
     let contact = contact_switch(params, y0, &y1);
-    let cavitation = pressure_switch(params, y0, &y1);
-    let fraction = match (contact, cavitation) {
-        (Some(a), Some(b)) => a.min(b),
-        (a, b) => match a.or(b) {
-            Some(f) => f,
-            None => return y1,
-        },
+    let first_switch = contact.into_iter().chain(pressure_switch(params, y0, &y1)).reduce(f64::min);
+    let Some(fraction) = first_switch else {
+        return (y1, 1);
     };
     let mut y_cut = linear.step(params, y0, fraction * h);
     if contact == Some(fraction) && contact_force(params, y0) == 0.0 {
@@ -107,7 +106,8 @@ fn advance_once(
     }
     let spool_cut = spool[0] + fraction * (spool[1] - spool[0]);
     let rest = h - fraction * h;
-    Linearised::at(params, &y_cut, [spool_cut, spool[1]], rest, loads).step(params, &y_cut, rest)
+    let rest_of_step = Linearised::at(params, &y_cut, [spool_cut, spool[1]], rest, loads);
+    (rest_of_step.step(params, &y_cut, rest), 2)
 }
 
 /// The model linearised at a step's start: rates, Jacobian (with the secants a fixed step
@@ -192,9 +192,8 @@ fn pressure_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64>
         .reduce(f64::min)
 }
 
-/// The contact force `k d + c d'` of the stop on the side of `y`'s position, positive while
-/// the stop pushes, extended linearly outside the stop (`d < 0`): the guard of a contact
-/// switch, zero out of contact.
+/// The size of the end stop's contact force at `y` (N): `k d + c d'` while the stop pushes,
+/// zero out of contact.
 fn contact_force(params: &CylinderParams, y: &Vec4) -> f64 {
     endstop_force(params, y[X], y[V]).0.abs()
 }
