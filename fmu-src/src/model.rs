@@ -60,8 +60,8 @@ impl State {
         Inputs { a_rod: self.rod_acceleration, ..inputs(&self.values) }
     }
 
-    /// Writes the outputs the last step left unwritten.
-    fn write_all_due(&mut self) {
+    /// Writes the outputs the last step left unwritten (the laws' outputs, [`LAW_OUTPUTS`]).
+    fn write_laws_if_due(&mut self) {
         if self.laws_due {
             self.write_outputs();
         }
@@ -116,8 +116,8 @@ impl Model {
             if index == vr::TIME {
                 return time;
             }
-            if LAW_OUTPUTS.contains(&index) && self.state.borrow().laws_due {
-                self.state.borrow_mut().write_outputs();
+            if LAW_OUTPUTS.contains(&index) {
+                self.state.borrow_mut().write_laws_if_due();
             }
             self.state.borrow().values[index]
         }
@@ -366,7 +366,7 @@ impl Model {
     /// Versioned, self-checking byte form of the whole instance (no pointers).
     pub fn to_bytes(&self) -> Vec<u8> {
         self.refresh_before_start();
-        self.state.borrow_mut().write_all_due();
+        self.state.borrow_mut().write_laws_if_due();
         let state = self.state.borrow();
         let mut body = Vec::with_capacity(16 + 8 * (N_VARIABLES + 16));
         body.extend_from_slice(&(N_VARIABLES as u32).to_le_bytes());
@@ -613,7 +613,7 @@ impl State {
     ) -> Result<(), String> {
         // The outputs stay those of the last communication point: written before the
         // coefficients they would be computed with change.
-        self.write_all_due();
+        self.write_laws_if_due();
         let before = self.values;
         for (index, value) in changes {
             self.values[index] = value;
