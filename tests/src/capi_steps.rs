@@ -128,3 +128,42 @@ pub fn run(workload: &Workload, steps: usize, h: f64) -> Result<usize, String> {
     }
     Ok(steps * workload.legs.len())
 }
+
+/// Steps every instance of `workload` as [`run`] does, reading every real output of the
+/// table after each step through `fmi2GetReal` (all at once, in table order); returns the
+/// FNV-1a hash of their bits over the run and the last instance's final x_piston and p_A:
+/// what `output_digest` prints to show that a change left the results alone.
+pub fn digest(workload: &Workload, steps: usize, h: f64) -> Result<(u64, [f64; 2]), String> {
+    use ehsv_actuator::variables::{Causality, VarType, VARIABLES};
+    let t_end = steps as f64 * h;
+    let instances =
+        workload.legs.iter().map(|_| start(workload, t_end)).collect::<Result<Vec<_>, _>>()?;
+    let refs = References { inputs: INPUTS.map(|v| v as u32), read: READ.map(|v| v as u32) };
+    let outputs: Vec<u32> = (0..VARIABLES.len())
+        .filter(|&i| {
+            VARIABLES[i].causality == Causality::Output && VARIABLES[i].ty == VarType::Real
+        })
+        .map(|i| i as u32)
+        .collect();
+    let (mut values, mut out) = (vec![0.0; outputs.len()], [0.0; READ.len()]);
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for k in 0..steps {
+        let t = k as f64 * h;
+        for (instance, signal) in instances.iter().zip(&workload.legs) {
+            let status = communication_step(instance.0, &refs, &signal.inputs(t), (t, h), &mut out);
+            for (what, s) in ["fmi2SetReal", "fmi2DoStep", "fmi2GetReal"].iter().zip(status) {
+                check(what, s).map_err(|e| format!("{e} at t = {t}"))?;
+            }
+            // SAFETY: live instance; arrays of outputs.len() elements.
+            check("fmi2GetReal", unsafe {
+                fmi2GetReal(instance.0, outputs.as_ptr(), outputs.len(), values.as_mut_ptr())
+            })?;
+            for v in out.iter().chain(&values) {
+                for byte in v.to_bits().to_le_bytes() {
+                    hash = (hash ^ byte as u64).wrapping_mul(0x0100_0000_01b3);
+                }
+            }
+        }
+    }
+    Ok((hash, [out[1], out[2]]))
+}
