@@ -11,7 +11,7 @@
 use crate::components::coefficients::Coefficients;
 use crate::components::hbridge::HBridgeState;
 use crate::events::StepEvents;
-use crate::numerics::augmented_state::{dot, unit, Mat, Vector, I, I_CMD, ONE, RAIL, U, UI};
+use crate::numerics::augmented_state::{row_dot, unit, Mat, Vector, I, I_CMD, ONE, RAIL, U, UI};
 use crate::params::DriverKind;
 
 /// Driver modes. The PI drivers move between the last seven.
@@ -63,6 +63,13 @@ pub(crate) fn rail(c: &Coefficients, v_supply: f64) -> f64 {
 }
 
 /// Row vector of u_lin = Kp (i_ref - i) + ui.
+/// The PI law's output at `z`, `u_lin_row(c) . z` written out: the same bits as that dot
+/// product (its two lanes hold `-Kp i + Kp i_ref` and `ui`), without building the row.
+#[inline]
+pub(crate) fn u_lin(c: &Coefficients, z: &Vector) -> f64 {
+    (c.kp * z[I_CMD] - c.kp * z[I]) + z[UI]
+}
+
 pub(crate) fn u_lin_row(c: &Coefficients) -> Vector {
     let mut r = Vector::zeros();
     r[I_CMD] = c.kp;
@@ -145,7 +152,7 @@ pub(crate) fn consistent_mode<'a>(
     }
     let vmax = z[RAIL];
     let e = z[I_CMD] - z[I];
-    let u_lin = dot(&u_lin_row(c), z);
+    let u_lin = u_lin(c, z);
     let target = u_lin.clamp(-vmax, vmax);
     let tol = 1e-9 * (1.0 + vmax);
     if z[U] < target - tol {
@@ -169,7 +176,7 @@ pub(crate) fn consistent_mode<'a>(
     }
     let mut at = *z;
     at[U] = u_lin;
-    let du = a_of(Mode::Linear).row(U).transpose().dot(&at);
+    let du = row_dot(a_of(Mode::Linear), U, &at);
     if du > c.slew_rate {
         Mode::SlewUp
     } else if du < -c.slew_rate {
@@ -184,7 +191,7 @@ pub(crate) fn consistent_mode<'a>(
 /// modes. An estimate: the law moves with the coil current meanwhile.
 pub(crate) fn slew_time(c: &Coefficients, mode: Mode, z: &Vector) -> Option<f64> {
     matches!(mode, Mode::SlewUp | Mode::SlewDown).then(|| {
-        let target = dot(&u_lin_row(c), z).clamp(-z[RAIL], z[RAIL]);
+        let target = u_lin(c, z).clamp(-z[RAIL], z[RAIL]);
         (target - z[U]).abs() / c.slew_rate
     })
 }
@@ -197,7 +204,7 @@ pub(crate) fn slew_time(c: &Coefficients, mode: Mode, z: &Vector) -> Option<f64>
 /// output takes its target.
 pub(crate) fn clip_overshoot(c: &Coefficients, z: &mut Vector, mode: Mode, ended: bool) {
     let vmax = z[RAIL];
-    let target = || dot(&u_lin_row(c), z).clamp(-vmax, vmax);
+    let target = || u_lin(c, z).clamp(-vmax, vmax);
     match mode {
         Mode::SlewUp | Mode::SlewDown if ended => z[U] = target(),
         Mode::SlewUp => z[U] = z[U].min(target()),
@@ -214,7 +221,7 @@ pub(crate) fn project_onto(c: &Coefficients, hbridge: &HBridgeState, z: &mut Vec
         Mode::Ideal => z[I] = z[I_CMD],
         Mode::Voltage => z[U] = (c.r_total * z[I_CMD]).clamp(-z[RAIL], z[RAIL]),
         Mode::Switched => z[U] = hbridge.output(z[RAIL]),
-        Mode::Linear => z[U] = dot(&u_lin_row(c), z),
+        Mode::Linear => z[U] = u_lin(c, z),
         Mode::HighFrozen | Mode::HighIntegrating => z[U] = z[RAIL],
         Mode::LowFrozen | Mode::LowIntegrating => z[U] = -z[RAIL],
         Mode::SlewUp | Mode::SlewDown => {}

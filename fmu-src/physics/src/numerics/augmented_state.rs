@@ -80,6 +80,21 @@ pub(crate) fn dot(a: &Vector, b: &Vector) -> f64 {
     lanes[0] + lanes[1] + a[N - 1] * b[N - 1]
 }
 
+/// Row `r` of `a` dotted with `z`, read down the column-major storage in two lanes (as
+/// [`dot`]) without gathering the row first.
+#[inline]
+pub(crate) fn row_dot(a: &Mat, r: usize, z: &Vector) -> f64 {
+    let (entries, z) = (a.as_slice(), z.as_slice());
+    let mut lanes = [0.0; 2];
+    for pair in 0..N / 2 {
+        for (lane, sum) in lanes.iter_mut().enumerate() {
+            let c = 2 * pair + lane;
+            *sum += entries[c * N + r] * z[c];
+        }
+    }
+    lanes[0] + lanes[1] + entries[(N - 1) * N + r] * z[N - 1]
+}
+
 /// `p z` for a propagator `exp(A t)` (constant rows those of the identity): the constants
 /// are carried over exactly.
 #[inline]

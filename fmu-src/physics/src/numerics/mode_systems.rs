@@ -290,24 +290,7 @@ impl PropagatorCache {
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
             None => {
-                let scaled = sys.a * key_h;
-                // The squarings grow with log2 of the norm, and past ~1e30 the powers'
-                // norms overflow. Physical cases stay decades below MAX_SCALED_NORM (a
-                // 1e20 s step gives ~3e23).
-                let norm = scaled
-                    .column_iter()
-                    .map(|c| c.iter().map(|x| x.abs()).sum::<f64>())
-                    .fold(0.0, f64::max);
-                if norm.is_nan() || norm > MAX_SCALED_NORM {
-                    return Err(format!(
-                        "a sub-step of {h} s with these parameters is beyond exact propagation (|A h| = {norm:e}); step refused"
-                    ));
-                }
-                let Some(propagator) = exp_augmented(&scaled) else {
-                    return Err(format!(
-                        "a sub-step of {h} s with these parameters has no exact propagator (|A h| = {norm:e}); step refused"
-                    ));
-                };
+                let propagator = checked_exponential(&sys.a, key_h, h)?;
                 let slot = self.next;
                 self.keys[slot] = key;
                 self.values[slot] = propagator;
@@ -318,6 +301,26 @@ impl PropagatorCache {
         };
         Ok(Propagator { substeps, h, matrix: Some(&self.values[slot]), rest: h - key_h })
     }
+}
+
+/// `exp(A span)`, refused (naming `step`, the step it serves) where `A span` is beyond
+/// exact propagation: the squarings grow with log2 of its norm, and past ~1e30 the powers'
+/// norms overflow. Physical cases stay decades below [`MAX_SCALED_NORM`] (a 1e20 s step
+/// gives ~3e23).
+pub(crate) fn checked_exponential(a: &Mat, span: f64, step: f64) -> Result<Mat, String> {
+    let scaled = a * span;
+    let norm =
+        scaled.column_iter().map(|c| c.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max);
+    if norm.is_nan() || norm > MAX_SCALED_NORM {
+        return Err(format!(
+            "a sub-step of {step} s with these parameters is beyond exact propagation (|A h| = {norm:e}); step refused"
+        ));
+    }
+    exp_augmented(&scaled).ok_or_else(|| {
+        format!(
+            "a sub-step of {step} s with these parameters has no exact propagator (|A h| = {norm:e}); step refused"
+        )
+    })
 }
 
 /// exp(A t) z by its Taylor series, in pieces with |lambda| h <= 1, each summed until

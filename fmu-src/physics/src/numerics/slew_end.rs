@@ -17,7 +17,7 @@
 //! `c = sum_k (-A)^k e_U / k! int_0^tau s^k (w0 + w1 s) ds`.
 
 use crate::components::coefficients::Coefficients;
-use crate::components::driver::{u_lin_row, Mode, MODES};
+use crate::components::driver::{u_lin, Mode, MODES};
 use crate::numerics::augmented_state::{dot, Mat, Vector, EVOLVING, U};
 use crate::numerics::mode_systems::{ModeSystem, NEGLECTED_TERM, RECIPROCALS};
 use crate::numerics::root_finding::time_to_close;
@@ -86,7 +86,7 @@ pub(crate) fn pulled_back(
 /// quadratic solved in closed form (its root nearer zero, in the form that does not
 /// cancel). `None` where the gap does not close.
 pub(crate) fn end_time(c: &Coefficients, [d, d_rate]: &[Vector; 2], z0: &Vector) -> Option<f64> {
-    let gap = dot(&u_lin_row(c), z0) - z0[U];
+    let gap = u_lin(c, z0) - z0[U];
     let (w0, w1) = (dot(d, z0), dot(d_rate, z0));
     if gap * w0 <= 0.0 {
         // The gap opens (or holds) at the slew's start: no end here, even where the law's
@@ -103,6 +103,7 @@ mod tests {
     use super::*;
     use crate::actuator::mode_system;
     use crate::components::coefficients::Coefficients;
+    use crate::components::driver::u_lin_row;
     use crate::numerics::augmented_state::{I_CMD, ONE, RAIL};
 
     fn systems() -> [ModeSystem; MODES.len()] {

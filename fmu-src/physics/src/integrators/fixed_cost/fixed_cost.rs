@@ -5,8 +5,8 @@
 //! 1e-4 s communication step), and where the internal step divides the communication step
 //! the cuts do not depend on it.
 //! Per internal step:
-//! * driver, coil and valve go by the mode's propagator over the step (cached per mode
-//!   and span; the whole steps' built when the first step is prepared); a guard that
+//! * driver, coil and valve go by the mode's propagator over the step (one matrix per mode
+//!   and span, [`super::whole_steps`]; built when the first step is prepared); a guard that
 //!   crossed inside the step is placed by one linear interpolation, the mode chosen again
 //!   there ([`Actuator::settle`]) and the rest of the step taken in the new one: no event
 //!   search; the parts of a step either side of such a change go by the mode's ladder of
@@ -29,12 +29,12 @@ use crate::events::Work;
 use crate::held_inputs::HeldInputs;
 use crate::integrators::fixed_cost::dyadic_ladder::DyadicLadders;
 use crate::integrators::fixed_cost::lean_cylinder;
+use crate::integrators::fixed_cost::whole_steps::WholeSteps;
 use crate::integrators::seam::{Integrator, Segment};
 use crate::numerics::augmented_state;
 use crate::numerics::augmented_state::Vector;
 use crate::numerics::augmented_state::{I, RAIL, U};
 use crate::numerics::mode_systems::Propagator;
-use crate::numerics::mode_systems::PropagatorCache;
 use crate::numerics::slew_end;
 use crate::params::ControlMode;
 
@@ -47,7 +47,7 @@ pub(crate) struct FixedCostIntegrator {
     /// The longest internal step (s), `solver.h_internal`.
     h_internal: f64,
     /// Whole internal steps' propagators, per mode and step.
-    cache: PropagatorCache,
+    whole: WholeSteps,
     /// Parts of internal steps (either side of a mode change placed inside one).
     ladders: DyadicLadders,
     /// The mode pairs whose slew ends [`slew_end`] takes.
@@ -58,7 +58,7 @@ impl FixedCostIntegrator {
     pub(crate) fn new(h_internal: f64, actuator: &Actuator) -> FixedCostIntegrator {
         FixedCostIntegrator {
             h_internal,
-            cache: PropagatorCache::new(),
+            whole: WholeSteps::new(),
             ladders: DyadicLadders::new(h_internal),
             slew_exits: slew_end::slew_exits(&actuator.systems),
         }
@@ -104,27 +104,27 @@ impl Integrator for FixedCostIntegrator {
                 let key = system_key(mode, actuator.stops);
                 let sys = actuator.systems[mode.index()].with_stops(c, actuator.stops);
                 // A mode this driver never enters may have no propagator: nothing to build.
-                let _ = self.cache.get(key, &sys, h, true, 1);
+                let _ = self.whole.slot(key, &sys, h);
                 let _ = self.ladders.slot(key, &sys);
             }
         }
     }
 
     fn adopt_prepared(&mut self, probe: FixedCostIntegrator) {
-        self.cache = probe.cache;
+        self.whole = probe.whole;
         self.ladders = probe.ladders;
     }
 
     fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool) {
         if systems_rebuilt {
-            self.cache.clear();
+            self.whole.clear();
             self.ladders.clear();
             self.slew_exits = slew_end::slew_exits(&actuator.systems);
         }
     }
 
     fn count_work(&self, work: &mut Work) {
-        work.exponentials += self.cache.exponentials + self.ladders.exponentials;
+        work.exponentials += self.whole.exponentials + self.ladders.exponentials;
     }
 }
 
@@ -249,7 +249,7 @@ impl FixedCostIntegrator {
         let mut z1 = if actuator.mode == Mode::Switched {
             Propagator::taylor_only(sys, h, 1).apply_all(sys, z)
         } else if nominal {
-            self.cache.get(actuator.system_key(), sys, h, true, 1)?.apply_all(sys, z)
+            self.whole.propagate(actuator.system_key(), sys, h, z)?
         } else {
             self.ladders.propagate(actuator.system_key(), sys, h, z)?
         };
