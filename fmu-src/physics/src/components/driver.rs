@@ -137,6 +137,16 @@ pub(crate) fn mode_guards(c: &Coefficients, mode: Mode, a: &Mat) -> Vec<Vector> 
     }
 }
 
+/// The linear mode's guards ([`mode_guards`]) at `z`, `a` its dynamics, written out: the
+/// rails' pair reads two entries and the slew's pair one row of `a`, where the guards' dot
+/// products read all nine entries of four rows. The same bits, as its `ONE` column is zero
+/// (the law has no constant term; a test holds them to it).
+#[inline]
+pub(crate) fn linear_guard_values(c: &Coefficients, a: &Mat, z: &Vector) -> [f64; 4] {
+    let du = row_dot(a, U, z);
+    [z[U] - z[RAIL], -z[U] - z[RAIL], du - c.slew_rate, -du - c.slew_rate]
+}
+
 /// The mode the driver is in at state `z` (`a_of`: each mode's system); on a boundary the
 /// direction of motion decides, so a mode is never entered only to be left at once.
 pub(crate) fn consistent_mode<'a>(
@@ -264,6 +274,37 @@ pub(crate) fn count_switch(events: &mut StepEvents, from: Mode, to: Mode) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The written-out guards of the linear mode give the guards' dot products bit for bit,
+    /// for both PI drivers, on and off the rails.
+    #[test]
+    fn the_linear_modes_guards_written_out_are_its_guards() {
+        for driver in [DriverKind::OpampPi, DriverKind::Industrial] {
+            let c = Coefficients::new(&crate::params::Params {
+                driver,
+                ..crate::params::Params::PAPER
+            })
+            .unwrap();
+            let sys = crate::actuator::mode_system(&c, Mode::Linear);
+            assert_eq!(sys.a[(U, ONE)], 0.0);
+            for k in 0..50 {
+                let x = k as f64;
+                let z = Vector::from_fn(|i, _| match i {
+                    ONE => 1.0,
+                    RAIL => 72.0,
+                    _ => {
+                        (x * (i as f64 + 1.3)).sin() * [1e-2, 30.0, 80.0, 1e-5, 1e-2, 1e-4, 1e-2][i]
+                    }
+                });
+                let generic: Vec<f64> = (0..sys.n_guards).map(|g| sys.guard_value(g, &z)).collect();
+                let written = linear_guard_values(&c, &sys.a, &z);
+                assert_eq!(generic.len(), 4);
+                for (g, w) in generic.iter().zip(written) {
+                    assert_eq!(g.to_bits(), w.to_bits(), "{driver:?} z = {z:?}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn rail_guards_of_the_linear_mode_bound_the_output() {

@@ -32,7 +32,7 @@ const MAX_SCALED_NORM: f64 = 1e25;
 /// Sub-steps per propagation at most (a 1e6 s step stays well under a second).
 const MAX_SUBSTEPS: usize = 1 << 14;
 /// Driver guards (4) + flapper stop guards (2) + spool stop guards (2).
-const MAX_GUARDS: usize = 8;
+pub(crate) const MAX_GUARDS: usize = 8;
 const CACHE_SLOTS: usize = 32;
 
 /// One number per guard.

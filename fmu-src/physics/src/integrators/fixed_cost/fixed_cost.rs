@@ -34,7 +34,7 @@ use crate::integrators::seam::{Integrator, Segment};
 use crate::numerics::augmented_state;
 use crate::numerics::augmented_state::Vector;
 use crate::numerics::augmented_state::{I, RAIL, U};
-use crate::numerics::mode_systems::Propagator;
+use crate::numerics::mode_systems::{Propagator, MAX_GUARDS};
 use crate::numerics::slew_end;
 use crate::params::ControlMode;
 
@@ -285,14 +285,12 @@ fn brief_slew_as_a_jump(actuator: &mut Actuator, tau: f64, events: &mut StepEven
 /// did), and whether every guard is negative at `z1`. A guard's start is looked at only
 /// where its end is positive.
 fn guards_along(actuator: &Actuator, z1: &Vector) -> (Option<f64>, bool) {
-    let c = &actuator.params;
-    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    let (ends, n) = guard_values(actuator, z1);
     let (mut first, mut inside) = (None, true);
-    for g in 0..sys.n_guards {
-        let v1 = sys.guard_value(g, z1);
+    for (g, &v1) in ends[..n].iter().enumerate() {
         inside &= v1 < 0.0;
         if v1 > 0.0 {
-            let v0 = sys.guard_value(g, &actuator.z);
+            let v0 = guard_values(actuator, &actuator.z).0[g];
             if v0 < 0.0 {
                 let fraction = v0 / (v0 - v1);
                 first = Some(first.map_or(fraction, |f: f64| f.min(fraction)));
@@ -300,6 +298,24 @@ fn guards_along(actuator: &Actuator, z1: &Vector) -> (Option<f64>, bool) {
         }
     }
     (first, inside)
+}
+
+/// The values of the actuator's mode's guards at `z`, and how many there are: the linear
+/// mode's free of valve stops written out ([`driver::linear_guard_values`]: most steps are
+/// in it), the others by their rows.
+fn guard_values(actuator: &Actuator, z: &Vector) -> ([f64; MAX_GUARDS], usize) {
+    let c = &actuator.params;
+    let mut values = [0.0; MAX_GUARDS];
+    if actuator.mode == Mode::Linear && !valve::has_stops(c) {
+        let linear = driver::linear_guard_values(c, &actuator.systems[Mode::Linear.index()].a, z);
+        values[..linear.len()].copy_from_slice(&linear);
+        return (values, linear.len());
+    }
+    let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
+    for (g, value) in values[..sys.n_guards].iter_mut().enumerate() {
+        *value = sys.guard_value(g, z);
+    }
+    (values, sys.n_guards)
 }
 
 /// The spool's position in the actuator's current mode (held at a stop where it has one).
