@@ -147,6 +147,18 @@ pub(crate) fn linear_guard_values(c: &Coefficients, a: &Mat, z: &Vector) -> [f64
     [z[U] - z[RAIL], -z[U] - z[RAIL], du - c.slew_rate, -du - c.slew_rate]
 }
 
+/// Whether [`consistent_mode`] puts a PI driver at `z`, on the linear mode's manifold
+/// (`z[U]` its law's value), in the linear mode, `a` that mode's dynamics: clear of the
+/// rails by more than its tolerance, and the output's rate within the slew rate. Its tests
+/// in its order, for the one outcome (`false`: ask it).
+#[inline]
+pub(crate) fn surely_linear(c: &Coefficients, a: &Mat, z: &Vector) -> bool {
+    let (vmax, u_lin) = (z[RAIL], u_lin(c, z));
+    let tol = 1e-9 * (1.0 + vmax);
+    let du = row_dot(a, U, z);
+    u_lin < vmax - tol && u_lin > -vmax + tol && !(du > c.slew_rate) && !(du < -c.slew_rate)
+}
+
 /// The mode the driver is in at state `z` (`a_of`: each mode's system); on a boundary the
 /// direction of motion decides, so a mode is never entered only to be left at once.
 pub(crate) fn consistent_mode<'a>(

@@ -20,9 +20,11 @@
 //!   between its positions at the step's ends.
 
 use crate::actuator::{current_system, system_key, Actuator};
+use crate::components::coefficients::Coefficients;
 use crate::components::driver;
 use crate::components::driver::Mode;
 use crate::components::driver::MODES;
+use crate::components::hbridge::HBridgeState;
 use crate::components::valve;
 use crate::events::StepEvents;
 use crate::events::Work;
@@ -37,6 +39,7 @@ use crate::numerics::augmented_state::{I, RAIL, U};
 use crate::numerics::mode_systems::{Propagator, MAX_GUARDS};
 use crate::numerics::slew_end;
 use crate::params::ControlMode;
+use crate::params::DriverKind;
 
 /// Mode changes placed inside one internal step at most; more are decided at its end.
 const MAX_SWITCHES: usize = 3;
@@ -141,6 +144,9 @@ impl FixedCostIntegrator {
         h: f64,
         events: &mut StepEvents,
     ) -> Result<(), String> {
+        if self.linear_lane(actuator, h)? {
+            return Ok(());
+        }
         let (mut left, mut ahead) = (h, None);
         let mut first = 0;
         if let Some((tau, end)) = self.slew_from_start(actuator, h, events)? {
@@ -172,6 +178,42 @@ impl FixedCostIntegrator {
             }
         }
         Ok(())
+    }
+
+    /// The most common internal step, the way [`Self::driver_and_valve`] takes it but without
+    /// its bookkeeping: a PI driver free of valve stops that stays in its linear mode over
+    /// the step, from the step's start or after a brief slew into it from there (a loop's
+    /// sample, a new command: taken as a jump, [`jumped_to_linear`]). The same arithmetic in
+    /// the same order, so the same bits. `false`, with nothing changed, for any other step:
+    /// a slew that is not brief, a state within the tolerance of a rail, a guard reached.
+    fn linear_lane(&mut self, actuator: &mut Actuator, h: f64) -> Result<bool, String> {
+        let c = &actuator.params;
+        if !matches!(c.driver, DriverKind::OpampPi | DriverKind::Industrial) || valve::has_stops(c)
+        {
+            return Ok(false);
+        }
+        let start = match actuator.mode {
+            Mode::Linear => actuator.z,
+            Mode::SlewUp | Mode::SlewDown => match self.slew_end(actuator, h) {
+                Some(tau) if tau <= h * BRIEF_SLEW => {
+                    jumped_to_linear(c, &actuator.hbridge, actuator.mode, tau, &actuator.z)
+                }
+                _ => return Ok(false),
+            },
+            _ => return Ok(false),
+        };
+        let linear = &actuator.systems[Mode::Linear.index()];
+        if !driver::surely_linear(c, &linear.a, &start) {
+            return Ok(false);
+        }
+        let key = system_key(Mode::Linear, valve::Stops::default());
+        let mut end = self.whole.propagate(key, linear, h, &start)?;
+        driver::project_onto(c, &actuator.hbridge, &mut end, Mode::Linear);
+        if driver::linear_guard_values(c, &linear.a, &end).iter().any(|&g| g >= 0.0) {
+            return Ok(false);
+        }
+        (actuator.mode, actuator.z) = (Mode::Linear, end);
+        Ok(true)
     }
 
     /// A slew from the internal step's start that ends inside it in the linear mode, without
@@ -270,14 +312,28 @@ const BRIEF_SLEW: f64 = 1.0 / 16.0;
 /// left is of second order in `tau` and decays with the current loop (20 us at the
 /// defaults).
 fn brief_slew_as_a_jump(actuator: &mut Actuator, tau: f64, events: &mut StepEvents) {
-    let c = &actuator.params;
-    let (rate, from) = (driver::slew_velocity(c, actuator.mode), actuator.mode);
-    let mut z = actuator.z;
-    z[I] -= 0.5 * rate * tau * tau / c.inductance;
-    driver::project_onto(c, &actuator.hbridge, &mut z, Mode::Linear);
+    let from = actuator.mode;
+    let mut z = jumped_to_linear(&actuator.params, &actuator.hbridge, from, tau, &actuator.z);
     actuator.settle(&mut z);
     driver::count_switch(events, from, actuator.mode);
     actuator.z = z;
+}
+
+/// `z`, in a slew of `mode` that ends after `tau`, taken to the linear mode at once: the
+/// current less the slew's missing volt-seconds, on the linear mode's manifold (see
+/// [`brief_slew_as_a_jump`]).
+fn jumped_to_linear(
+    c: &Coefficients,
+    hbridge: &HBridgeState,
+    mode: Mode,
+    tau: f64,
+    z: &Vector,
+) -> Vector {
+    let rate = driver::slew_velocity(c, mode);
+    let mut z = *z;
+    z[I] -= 0.5 * rate * tau * tau / c.inductance;
+    driver::project_onto(c, hbridge, &mut z, Mode::Linear);
+    z
 }
 
 /// Where in a propagation from the actuator's state to `z1` the first of its mode's guards
