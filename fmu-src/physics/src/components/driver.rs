@@ -156,7 +156,8 @@ pub(crate) fn surely_linear(c: &Coefficients, a: &Mat, z: &Vector) -> bool {
     let (vmax, u_lin) = (z[RAIL], u_lin(c, z));
     let tol = 1e-9 * (1.0 + vmax);
     let du = row_dot(a, U, z);
-    u_lin < vmax - tol && u_lin > -vmax + tol && !(du > c.slew_rate) && !(du < -c.slew_rate)
+    // A NaN is not surely linear: the general way refuses it.
+    u_lin < vmax - tol && u_lin > -vmax + tol && (-c.slew_rate..=c.slew_rate).contains(&du)
 }
 
 /// The mode the driver is in at state `z` (`a_of`: each mode's system); on a boundary the
