@@ -25,7 +25,8 @@ Measured with fixed_cost's linearly implicit trapezoidal step at the default 50 
 (2026-11-28, fmi2): the pressures reach the floor (-0.9 bar; the step holds a pressure that
 ends below it at the floor) and peak at 84.0 bar (op-amp) and 84.1 bar (H-bridge) under the
 90 bar envelope; the last period's amplitude over the first periods' is at most 1.24
-(v_piston, op-amp; 1.14 with the H-bridge), the pressures' at most 1.09.
+(v_piston, op-amp; 1.22 with the H-bridge, whose PWM fixed_cost takes by its periods'
+means), the pressures' at most 1.09.
 """
 
 from __future__ import annotations

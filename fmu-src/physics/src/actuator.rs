@@ -239,7 +239,7 @@ pub(crate) fn rest_state(
         return (z, None);
     }
     let hbridge = HBridgeState::at_equilibrium(&p.hbridge, u, p.r_total * i_cmd, vmax, start_time);
-    z[U] = hbridge.output(vmax);
+    z[U] = hbridge.output(&p.hbridge, vmax);
     (z, Some(hbridge))
 }
 

@@ -125,7 +125,7 @@ impl Physics {
                 a.follow_command(&inputs, &mut events);
             } else {
                 a.hbridge.fire(&p.hbridge, a.z[I], a.z[I_CMD], p.r_total, a.z[RAIL]);
-                a.z[U] = a.hbridge.output(a.z[RAIL]);
+                a.z[U] = a.hbridge.output(&p.hbridge, a.z[RAIL]);
             }
         }
         if !a.z.iter().all(|x| x.is_finite()) {

@@ -97,6 +97,11 @@ pub struct HBridgeParams {
     pub ki: f64,
     /// Adds (R + R_sense) i_cmd to the PI output.
     pub feedforward: bool,
+    /// Takes each PWM period by its mean voltage (`duty * V`) instead of its two switchings:
+    /// what `solver.method = fixed_cost` does (no variable of its own: the coefficients set
+    /// it from the method, whatever it holds here). The coil current's ripple at the PWM
+    /// frequency is then not resolved.
+    pub pwm_mean: bool,
 }
 
 /// Torque-motor coil.
@@ -268,6 +273,7 @@ impl Params {
             kp: 9000.0,
             ki: 2812500.0,
             feedforward: true,
+            pwm_mean: false,
         },
         coil: CoilParams { inductance: 3.2, resistance: 1000.0, r_sense: 0.0, k_backemf: 0.0 },
         valve: ValveParams {

@@ -218,8 +218,8 @@ impl Sampled {
     }
 
     /// The bridge output for `rail` (V).
-    pub fn bridge_output(&self, rail: f64) -> f64 {
-        self.hbridge.output(rail)
+    pub fn bridge_output(&self, model: &WholeModel, rail: f64) -> f64 {
+        self.hbridge.output(&model.c.hbridge, rail)
     }
 
     /// Handles the next instant at state `y` (the outer loop first at equal times, as
@@ -243,7 +243,7 @@ impl Sampled {
             held.i_cmd = self.command(model, i_ref);
         } else {
             self.hbridge.fire(&c.hbridge, y[I], held.i_cmd, c.r_total, held.rail);
-            held.u_bridge = self.hbridge.output(held.rail);
+            held.u_bridge = self.hbridge.output(&c.hbridge, held.rail);
         }
     }
 }

@@ -206,7 +206,7 @@ pub const SOLVER_METHOD_TYPE: Enumeration = Enumeration {
     description: "The integrator between time events",
     items: &[
         ("exact", "driver, coil and valve exact, the cylinder by adaptive Rosenbrock: results independent of the communication step"),
-        ("fixed_cost", "work fixed by the step size for real-time rigs: internal steps of at most solver.h_internal, the cylinder by one linearly implicit trapezoidal step each (docs/solvers.md)"),
+        ("fixed_cost", "work fixed by the step size for real-time rigs: internal steps of at most solver.h_internal, the cylinder by one linearly implicit trapezoidal step each, the H-bridge's PWM by each period's mean voltage (docs/solvers.md)"),
     ],
 };
 

@@ -3,7 +3,7 @@
 
 use crate::components::cylinder::CylinderParams;
 use crate::components::outer_loop::LoopParams;
-use crate::params::{DriverKind, HBridgeParams, Params, ValveParams};
+use crate::params::{DriverKind, HBridgeParams, Params, SolverMethod, ValveParams};
 
 /// The parameters in the form the equations use (derived from [`Params`] once).
 #[derive(Clone, Copy, Debug)]
@@ -37,7 +37,12 @@ impl Coefficients {
             // The op-amp's output stage drop; the other drivers reach the supply.
             v_drop: if p.driver == DriverKind::OpampPi { p.opamp_v_drop } else { 0.0 },
             slew_rate: pi.slew_rate,
-            hbridge: p.hbridge,
+            // The fixed-cost method takes the PWM by its periods' means: a step's cost then
+            // does not grow with the switchings in it.
+            hbridge: HBridgeParams {
+                pwm_mean: p.solver_method == SolverMethod::FixedCost,
+                ..p.hbridge
+            },
             loops: LoopParams::new(&p.outer_loop, p.control_mode, v.k3 * v.k1 / v.kw),
             cylinder: CylinderParams::new(&p.cylinder, v)?,
             inductance: p.coil.inductance,

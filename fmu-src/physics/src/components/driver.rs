@@ -243,7 +243,7 @@ pub(crate) fn project_onto(c: &Coefficients, hbridge: &HBridgeState, z: &mut Vec
     match mode {
         Mode::Ideal => z[I] = z[I_CMD],
         Mode::Voltage => z[U] = (c.r_total * z[I_CMD]).clamp(-z[RAIL], z[RAIL]),
-        Mode::Switched => z[U] = hbridge.output(z[RAIL]),
+        Mode::Switched => z[U] = hbridge.output(&c.hbridge, z[RAIL]),
         Mode::Linear => z[U] = u_lin(c, z),
         Mode::HighFrozen | Mode::HighIntegrating => z[U] = z[RAIL],
         Mode::LowFrozen | Mode::LowIntegrating => z[U] = -z[RAIL],

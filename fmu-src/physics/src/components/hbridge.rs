@@ -7,6 +7,10 @@
 //! period k at k/f_pwm), so the switching instants are exact and the same at any
 //! communication step. Between them the bridge voltage is constant and the continuous
 //! part is linear (see [`crate::numerics::mode_systems`]).
+//!
+//! With [`HBridgeParams::pwm_mean`] (the fixed-cost method) the switchings are no events:
+//! over each period the bridge gives the period's mean voltage, `duty * V`, and only the
+//! samples and the periods' starts cut a step.
 
 use crate::params::HBridgeParams;
 use crate::state::bytes::ByteReader;
@@ -78,8 +82,11 @@ impl HBridgeState {
         if !self.active {
             return f64::INFINITY;
         }
-        let edge =
-            if self.next_edge < 2 { self.edges[self.next_edge as usize] } else { f64::INFINITY };
+        let edge = if self.next_edge < 2 && !p.pwm_mean {
+            self.edges[self.next_edge as usize]
+        } else {
+            f64::INFINITY
+        };
         edge.min(p.sample_time(self.next_sample)).min(p.period_time(self.next_period))
     }
 
@@ -103,7 +110,7 @@ impl HBridgeState {
         rail: f64,
     ) {
         let t = self.next_event(p);
-        if self.next_edge < 2 && self.edges[self.next_edge as usize] <= t {
+        if self.next_edge < 2 && self.edges[self.next_edge as usize] <= t && !p.pwm_mean {
             self.take_edge();
         } else if p.sample_time(self.next_sample) <= t {
             self.sample(p, i_coil, i_cmd, r_total, rail);
@@ -144,7 +151,12 @@ impl HBridgeState {
         self.next_period += 1;
     }
 
-    pub(crate) fn output(&self, rail: f64) -> f64 {
+    pub(crate) fn output(&self, p: &HBridgeParams, rail: f64) -> f64 {
+        if p.pwm_mean {
+            // The period's duty, from its edges: +V for (1 + duty)/2 of it.
+            let duty = 2.0 * (self.edges[1] - self.edges[0]) * p.f_pwm - 1.0;
+            return duty * rail;
+        }
         if self.high {
             rail
         } else {

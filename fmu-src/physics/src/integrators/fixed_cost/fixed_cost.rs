@@ -278,7 +278,8 @@ impl FixedCostIntegrator {
     /// Driver, coil and valve over `h` in the actuator's current mode from `z`, put on its
     /// manifold: a whole internal step (`nominal`) by its cached propagator, a part of one by
     /// the mode's ladder. The H-bridge's switched spans go by Taylor series, as in the exact
-    /// integrator (short and irregular: a series beats an exponential).
+    /// integrator (short and irregular: a series beats an exponential), but for whole steps
+    /// of its periods' means.
     fn propagate_from(
         &mut self,
         actuator: &Actuator,
@@ -288,7 +289,10 @@ impl FixedCostIntegrator {
     ) -> Result<Vector, String> {
         let c = &actuator.params;
         let sys = current_system(c, &actuator.active, &actuator.systems, actuator.mode);
-        let mut z1 = if actuator.mode == Mode::Switched {
+        // The bridge's PWM by its periods' means holds one voltage over whole steps, which
+        // then go by their propagator as the other modes' do.
+        let switching = actuator.mode == Mode::Switched && !(nominal && c.hbridge.pwm_mean);
+        let mut z1 = if switching {
             Propagator::taylor_only(sys, h, 1).apply_all(sys, z)
         } else if nominal {
             self.whole.propagate(actuator.system_key(), sys, h, z)?

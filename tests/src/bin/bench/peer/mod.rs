@@ -83,7 +83,7 @@ pub fn run(
         held: RhsInputs {
             i_cmd: sampled.command(&model, i_ref0),
             rail,
-            u_bridge: sampled.bridge_output(rail),
+            u_bridge: sampled.bridge_output(&model, rail),
             p_supply: values[vr::P_SUPPLY],
             f_ext: values[vr::F_EXT],
         },
