@@ -18,7 +18,7 @@ use crate::physics::{
 };
 use crate::variables::{
     inputs, params, start_values, vr, write_outputs, Causality, Coded, Variability, Variable,
-    N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
+    N_VARIABLES, SET_RULES, VALVE_RATED_CURRENT, VARIABLES,
 };
 
 /// The communication step of the default experiment (modelDescription.xml), for which
@@ -53,6 +53,29 @@ struct State {
 /// The outputs that [`Physics::state_outputs`] leaves out: the port flows and the rod's
 /// slopes, which evaluate the cylinder's laws.
 const LAW_OUTPUTS: [usize; 4] = [vr::Q_A, vr::Q_B, vr::DF_ROD_DX, vr::DF_ROD_DV];
+
+/// Where [`Model::reader`] finds a variable's value.
+#[derive(Clone, Copy)]
+enum ReadFrom {
+    /// The value array.
+    Values,
+    /// The model time ([`vr::TIME`]).
+    Time,
+    /// The value array, once the laws' outputs are written ([`LAW_OUTPUTS`]).
+    Laws,
+}
+
+/// [`ReadFrom`] of every variable, by value reference: one look-up per read.
+static READ_FROM: [ReadFrom; N_VARIABLES] = {
+    let mut table = [ReadFrom::Values; N_VARIABLES];
+    table[vr::TIME] = ReadFrom::Time;
+    let mut k = 0;
+    while k < LAW_OUTPUTS.len() {
+        table[LAW_OUTPUTS[k]] = ReadFrom::Laws;
+        k += 1;
+    }
+    table
+};
 
 impl State {
     /// The inputs in force: the value array's and the input derivative.
@@ -112,15 +135,20 @@ impl Model {
             self.refresh_before_start();
         }
         let time = self.time;
-        move |index| {
-            if index == vr::TIME {
-                return time;
-            }
-            if LAW_OUTPUTS.contains(&index) {
-                self.state.borrow_mut().write_laws_if_due();
-            }
-            self.state.borrow().values[index]
+        move |index| match READ_FROM[index] {
+            ReadFrom::Values => self.state.borrow().values[index],
+            ReadFrom::Time => time,
+            ReadFrom::Laws => self.read_law_output(index),
         }
+    }
+
+    /// A law output ([`LAW_OUTPUTS`]), written first if the last step left it unwritten.
+    /// Out of line: evaluating the laws would weigh on every read.
+    #[inline(never)]
+    fn read_law_output(&self, index: usize) -> f64 {
+        let mut state = self.state.borrow_mut();
+        state.write_laws_if_due();
+        state.values[index]
     }
 
     /// Stores a parameter or input after checking type and range; see [`Model::set_all`].
@@ -146,18 +174,26 @@ impl Model {
         let (mut retune, mut moved) = (false, false);
         let (mut x_ref, mut x_rod) = (state.values[vr::X_REF], state.values[vr::X_ROD]);
         for (index, value) in changes.clone() {
-            // A value the model holds already was accepted when it was set (or is a start
-            // value): only who may set what is checked again (importers resend unchanged
-            // inputs at every step).
-            let held = state.values.get(index).is_some_and(|v| v.to_bits() == value.to_bits());
-            settable(index, value, initialized, held)?;
-            retune |= !held && VARIABLES[index].causality == Causality::Parameter;
+            let rule = match SET_RULES.get(index) {
+                Some(rule) if rule.may_be_set(initialized) => rule,
+                _ => return Err(not_settable(index)),
+            };
             match index {
                 vr::X_REF => x_ref = value,
                 vr::X_ROD => x_rod = value,
                 _ => {}
             }
-            moved |= !held && matches!(index, vr::X_REF | vr::X_ROD);
+            // A value the model holds already was accepted when it was set (or is a start
+            // value): only who may set what is checked again (importers resend unchanged
+            // inputs at every step).
+            if state.values[index].to_bits() == value.to_bits() {
+                continue;
+            }
+            if !rule.surely_accepts(value) {
+                VARIABLES[index].check(value)?;
+            }
+            retune |= rule.parameter;
+            moved |= matches!(index, vr::X_REF | vr::X_ROD);
         }
         if initialized && moved {
             // The geometry is fixed once initialised: positions held fitted it when set.
@@ -412,24 +448,7 @@ impl Model {
     }
 }
 
-/// Whether variable `index` may take `value`: a parameter or input, within its type and
-/// range (unless `held`: the model holds that value already, so it passed), and (after
-/// initialisation) not a fixed parameter.
-#[inline]
-fn settable(index: usize, value: f64, initialized: bool, held: bool) -> Result<(), String> {
-    match VARIABLES.get(index) {
-        Some(var) if var.may_be_set(initialized) => {
-            if held {
-                Ok(())
-            } else {
-                var.check(value)
-            }
-        }
-        _ => Err(not_settable(index)),
-    }
-}
-
-/// Why [`settable`] refuses `index` (a message is only built for a refusal).
+/// Why [`Model::set_all`] refuses to set `index` (a message is only built for a refusal).
 #[cold]
 #[inline(never)]
 fn not_settable(index: usize) -> String {
