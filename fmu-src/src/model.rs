@@ -171,7 +171,7 @@ impl Model {
         let state = self.state.get_mut();
         let changes = changes.into_iter();
         // Everything that can refuse a value alone is checked before anything is written.
-        let (mut retune, mut moved) = (false, false);
+        let (mut retune, mut moved, mut changed) = (false, false, false);
         let (mut x_ref, mut x_rod) = (state.values[vr::X_REF], state.values[vr::X_ROD]);
         for (index, value) in changes.clone() {
             let rule = match SET_RULES.get(index) {
@@ -192,8 +192,13 @@ impl Model {
             if !rule.surely_accepts(value) {
                 VARIABLES[index].check(value)?;
             }
+            changed = true;
             retune |= rule.parameter;
             moved |= matches!(index, vr::X_REF | vr::X_ROD);
+        }
+        if !changed {
+            // Every value is the one held: nothing to write, no output to rebuild.
+            return Ok(());
         }
         if initialized && moved {
             // The geometry is fixed once initialised: positions held fitted it when set.
@@ -544,25 +549,21 @@ impl Model {
     /// Which conditions of [`InputWarning::ALL`] hold for the inputs in force (cheap, no
     /// allocation, one look at the state for all). Every step asks: the modes are decoded
     /// only where a value test holds (few steps).
+    #[inline]
     pub fn input_warnings(&self) -> [bool; InputWarning::ALL.len()] {
         let v = &self.state.borrow().values;
-        let current_above_rating = v[vr::I_REF].abs() > VALVE_RATED_CURRENT;
-        let no_driver_supply = v[vr::V_SUPPLY] == 0.0;
-        let no_hydraulic_supply = v[vr::P_SUPPLY] == 0.0;
-        if !(current_above_rating || no_driver_supply || no_hydraulic_supply) {
+        let suspects = WarningSuspects {
+            current_above_rating: v[vr::I_REF].abs() > VALVE_RATED_CURRENT,
+            no_driver_supply: v[vr::V_SUPPLY] == 0.0,
+            no_hydraulic_supply: v[vr::P_SUPPLY] == 0.0,
+        };
+        if !(suspects.current_above_rating
+            || suspects.no_driver_supply
+            || suspects.no_hydraulic_supply)
+        {
             return [false; InputWarning::ALL.len()];
         }
-        let mode = control_mode(v);
-        let moving = asks_for_motion(mode, v);
-        // The ideal current driver has no supply to miss.
-        let ideal = matches!(DriverKind::from_code(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
-        InputWarning::ALL.map(|warning| match warning {
-            InputWarning::CurrentAboveRating => {
-                current_above_rating && mode == ControlMode::Current
-            }
-            InputWarning::NoDriverSupply => no_driver_supply && !ideal && moving,
-            InputWarning::NoHydraulicSupply => no_hydraulic_supply && moving,
-        })
+        suspects.confirmed(v)
     }
 
     /// The log line for `warning`, naming the inputs.
@@ -590,6 +591,32 @@ impl Model {
                 "the valve has no supply pressure and the piston cannot be driven",
             ),
         }
+    }
+}
+
+/// The value tests of [`Model::input_warnings`], before the modes are decoded.
+struct WarningSuspects {
+    current_above_rating: bool,
+    no_driver_supply: bool,
+    no_hydraulic_supply: bool,
+}
+
+impl WarningSuspects {
+    /// Which conditions hold, now that a value test held. Out of line: the common step
+    /// has no suspect and stops at the tests.
+    #[inline(never)]
+    fn confirmed(&self, v: &[f64; N_VARIABLES]) -> [bool; InputWarning::ALL.len()] {
+        let mode = control_mode(v);
+        let moving = asks_for_motion(mode, v);
+        // The ideal current driver has no supply to miss.
+        let ideal = matches!(DriverKind::from_code(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
+        InputWarning::ALL.map(|warning| match warning {
+            InputWarning::CurrentAboveRating => {
+                self.current_above_rating && mode == ControlMode::Current
+            }
+            InputWarning::NoDriverSupply => self.no_driver_supply && !ideal && moving,
+            InputWarning::NoHydraulicSupply => self.no_hydraulic_supply && moving,
+        })
     }
 }
 
