@@ -268,6 +268,7 @@ impl Model {
 
     /// [`Model::do_step`] after [`Model::check_step`] has passed: for the FMI layer, which
     /// checks first to tell a refused step (nothing changes) from a failed one.
+    #[inline]
     pub(crate) fn do_checked_step(
         &mut self,
         current_time: f64,
@@ -366,7 +367,8 @@ impl Model {
         if !self.initialized {
             return Some(StepFault::BeforeInitialisation);
         }
-        if !step.is_finite() || step <= 0.0 {
+        // Positive and finite in two compares (NaN fails both).
+        if !(step > 0.0 && step <= f64::MAX) {
             return Some(StepFault::StepSize);
         }
         if !current_time.is_finite() {

@@ -30,6 +30,7 @@ fn rest_key(i: &Inputs, step: f64) -> RestKey {
 impl Physics {
     /// Whether a step of `step` with `inputs` changes nothing: the last step had the same
     /// inputs and size, no clock runs, and it left the state as it was, bit for bit.
+    #[inline]
     pub(super) fn rests(&self, inputs: &Inputs, step: f64) -> bool {
         // The keys compared bit for bit without a branch (nor a call to memcmp) per word.
         let same = |held: &RestKey| {
@@ -39,6 +40,7 @@ impl Physics {
     }
 
     /// No sampling or PWM clock will ever tick (the loops are continuous or absent).
+    #[inline]
     fn clocks_idle(&self) -> bool {
         let a = &self.actuator;
         a.hbridge.events_until(&a.params.hbridge, f64::INFINITY) == 0
