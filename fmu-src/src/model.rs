@@ -268,7 +268,7 @@ impl Model {
 
     /// [`Model::do_step`] after [`Model::check_step`] has passed: for the FMI layer, which
     /// checks first to tell a refused step (nothing changes) from a failed one.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn do_checked_step(
         &mut self,
         current_time: f64,
@@ -278,9 +278,7 @@ impl Model {
         // A step that changes nothing keeps the outputs written after the last one.
         let events = match state.physics.step(&state.inputs(), self.time, step)? {
             Some(events) => {
-                write_outputs(&state.physics.state_outputs(), &mut state.values);
-                // The laws' outputs, written as 0 just now, are computed when read.
-                state.laws_due = true;
+                state.write_state_outputs();
                 events
             }
             None => StepEvents::default(),
@@ -673,6 +671,15 @@ impl State {
             return Err(e);
         }
         Ok(())
+    }
+
+    /// Writes the outputs read off the state after a step that moved; the laws' outputs,
+    /// written as 0 here, are computed when read. Out of line: a resting step skips it,
+    /// and inlined it would weigh on every step's frame.
+    #[inline(never)]
+    fn write_state_outputs(&mut self) {
+        write_outputs(&self.physics.state_outputs(), &mut self.values);
+        self.laws_due = true;
     }
 
     /// Writes the physics' outputs into their value references.
