@@ -55,7 +55,6 @@ impl Physics {
         t_start: f64,
         step: f64,
     ) -> Result<StepEvents, String> {
-        let key = rest_key(inputs, step);
         let clocks_idle = self.clocks_idle();
         let a = &self.actuator;
         let saved = (a.z, a.mode, a.stops, a.hbridge, a.outer, a.cylinder, a.p_supply);
@@ -75,7 +74,9 @@ impl Physics {
                 && bits(&a.cylinder.memory.to_array(), &saved.5.memory.to_array())
                 && a.p_supply.to_bits() == saved.6.to_bits()
         };
-        self.resting = (clocks_idle && result.is_ok() && unchanged()).then_some(key);
+        // The key is built only for a step that rests.
+        let rests = clocks_idle && result.is_ok() && unchanged();
+        self.resting = if rests { Some(rest_key(inputs, step)) } else { None };
         if result.is_err() {
             (a.z, a.mode, a.stops, a.hbridge, a.outer, a.cylinder, a.p_supply) = saved;
             a.active = a.systems[a.mode.index()].with_stops(&a.params, a.stops);
