@@ -18,7 +18,7 @@ use crate::physics::{
 };
 use crate::variables::{
     inputs, params, start_values, vr, write_outputs, Causality, Coded, Variability, Variable,
-    N_VARIABLES, VALVE_RATED_CURRENT, VARIABLES,
+    N_VARIABLES, SET_RULES, VALVE_RATED_CURRENT, VARIABLES,
 };
 
 /// The communication step of the default experiment (modelDescription.xml), for which
@@ -53,6 +53,29 @@ struct State {
 /// The outputs that [`Physics::state_outputs`] leaves out: the port flows and the rod's
 /// slopes, which evaluate the cylinder's laws.
 const LAW_OUTPUTS: [usize; 4] = [vr::Q_A, vr::Q_B, vr::DF_ROD_DX, vr::DF_ROD_DV];
+
+/// Where [`Model::reader`] finds a variable's value.
+#[derive(Clone, Copy)]
+enum ReadFrom {
+    /// The value array.
+    Values,
+    /// The model time ([`vr::TIME`]).
+    Time,
+    /// The value array, once the laws' outputs are written ([`LAW_OUTPUTS`]).
+    Laws,
+}
+
+/// [`ReadFrom`] of every variable, by value reference: one look-up per read.
+static READ_FROM: [ReadFrom; N_VARIABLES] = {
+    let mut table = [ReadFrom::Values; N_VARIABLES];
+    table[vr::TIME] = ReadFrom::Time;
+    let mut k = 0;
+    while k < LAW_OUTPUTS.len() {
+        table[LAW_OUTPUTS[k]] = ReadFrom::Laws;
+        k += 1;
+    }
+    table
+};
 
 impl State {
     /// The inputs in force: the value array's and the input derivative.
@@ -112,15 +135,20 @@ impl Model {
             self.refresh_before_start();
         }
         let time = self.time;
-        move |index| {
-            if index == vr::TIME {
-                return time;
-            }
-            if LAW_OUTPUTS.contains(&index) {
-                self.state.borrow_mut().write_laws_if_due();
-            }
-            self.state.borrow().values[index]
+        move |index| match READ_FROM[index] {
+            ReadFrom::Values => self.state.borrow().values[index],
+            ReadFrom::Time => time,
+            ReadFrom::Laws => self.read_law_output(index),
         }
+    }
+
+    /// A law output ([`LAW_OUTPUTS`]), written first if the last step left it unwritten.
+    /// Out of line: evaluating the laws would weigh on every read.
+    #[inline(never)]
+    fn read_law_output(&self, index: usize) -> f64 {
+        let mut state = self.state.borrow_mut();
+        state.write_laws_if_due();
+        state.values[index]
     }
 
     /// Stores a parameter or input after checking type and range; see [`Model::set_all`].
@@ -143,21 +171,34 @@ impl Model {
         let state = self.state.get_mut();
         let changes = changes.into_iter();
         // Everything that can refuse a value alone is checked before anything is written.
-        let (mut retune, mut moved) = (false, false);
+        let (mut retune, mut moved, mut changed) = (false, false, false);
         let (mut x_ref, mut x_rod) = (state.values[vr::X_REF], state.values[vr::X_ROD]);
         for (index, value) in changes.clone() {
-            // A value the model holds already was accepted when it was set (or is a start
-            // value): only who may set what is checked again (importers resend unchanged
-            // inputs at every step).
-            let held = state.values.get(index).is_some_and(|v| v.to_bits() == value.to_bits());
-            settable(index, value, initialized, held)?;
-            retune |= !held && VARIABLES[index].causality == Causality::Parameter;
+            let rule = match SET_RULES.get(index) {
+                Some(rule) if rule.may_be_set(initialized) => rule,
+                _ => return Err(not_settable(index)),
+            };
             match index {
                 vr::X_REF => x_ref = value,
                 vr::X_ROD => x_rod = value,
                 _ => {}
             }
-            moved |= !held && matches!(index, vr::X_REF | vr::X_ROD);
+            // A value the model holds already was accepted when it was set (or is a start
+            // value): only who may set what is checked again (importers resend unchanged
+            // inputs at every step).
+            if state.values[index].to_bits() == value.to_bits() {
+                continue;
+            }
+            if !rule.surely_accepts(value) {
+                VARIABLES[index].check(value)?;
+            }
+            changed = true;
+            retune |= rule.parameter;
+            moved |= matches!(index, vr::X_REF | vr::X_ROD);
+        }
+        if !changed {
+            // Every value is the one held: nothing to write, no output to rebuild.
+            return Ok(());
         }
         if initialized && moved {
             // The geometry is fixed once initialised: positions held fitted it when set.
@@ -227,6 +268,7 @@ impl Model {
 
     /// [`Model::do_step`] after [`Model::check_step`] has passed: for the FMI layer, which
     /// checks first to tell a refused step (nothing changes) from a failed one.
+    #[inline(always)]
     pub(crate) fn do_checked_step(
         &mut self,
         current_time: f64,
@@ -236,9 +278,7 @@ impl Model {
         // A step that changes nothing keeps the outputs written after the last one.
         let events = match state.physics.step(&state.inputs(), self.time, step)? {
             Some(events) => {
-                write_outputs(&state.physics.state_outputs(), &mut state.values);
-                // The laws' outputs, written as 0 just now, are computed when read.
-                state.laws_due = true;
+                state.write_state_outputs();
                 events
             }
             None => StepEvents::default(),
@@ -325,7 +365,8 @@ impl Model {
         if !self.initialized {
             return Some(StepFault::BeforeInitialisation);
         }
-        if !step.is_finite() || step <= 0.0 {
+        // Positive and finite in two compares (NaN fails both).
+        if !(step > 0.0 && step <= f64::MAX) {
             return Some(StepFault::StepSize);
         }
         if !current_time.is_finite() {
@@ -412,24 +453,7 @@ impl Model {
     }
 }
 
-/// Whether variable `index` may take `value`: a parameter or input, within its type and
-/// range (unless `held`: the model holds that value already, so it passed), and (after
-/// initialisation) not a fixed parameter.
-#[inline]
-fn settable(index: usize, value: f64, initialized: bool, held: bool) -> Result<(), String> {
-    match VARIABLES.get(index) {
-        Some(var) if var.may_be_set(initialized) => {
-            if held {
-                Ok(())
-            } else {
-                var.check(value)
-            }
-        }
-        _ => Err(not_settable(index)),
-    }
-}
-
-/// Why [`settable`] refuses `index` (a message is only built for a refusal).
+/// Why [`Model::set_all`] refuses to set `index` (a message is only built for a refusal).
 #[cold]
 #[inline(never)]
 fn not_settable(index: usize) -> String {
@@ -525,25 +549,21 @@ impl Model {
     /// Which conditions of [`InputWarning::ALL`] hold for the inputs in force (cheap, no
     /// allocation, one look at the state for all). Every step asks: the modes are decoded
     /// only where a value test holds (few steps).
+    #[inline]
     pub fn input_warnings(&self) -> [bool; InputWarning::ALL.len()] {
         let v = &self.state.borrow().values;
-        let current_above_rating = v[vr::I_REF].abs() > VALVE_RATED_CURRENT;
-        let no_driver_supply = v[vr::V_SUPPLY] == 0.0;
-        let no_hydraulic_supply = v[vr::P_SUPPLY] == 0.0;
-        if !(current_above_rating || no_driver_supply || no_hydraulic_supply) {
+        let suspects = WarningSuspects {
+            current_above_rating: v[vr::I_REF].abs() > VALVE_RATED_CURRENT,
+            no_driver_supply: v[vr::V_SUPPLY] == 0.0,
+            no_hydraulic_supply: v[vr::P_SUPPLY] == 0.0,
+        };
+        if !(suspects.current_above_rating
+            || suspects.no_driver_supply
+            || suspects.no_hydraulic_supply)
+        {
             return [false; InputWarning::ALL.len()];
         }
-        let mode = control_mode(v);
-        let moving = asks_for_motion(mode, v);
-        // The ideal current driver has no supply to miss.
-        let ideal = matches!(DriverKind::from_code(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
-        InputWarning::ALL.map(|warning| match warning {
-            InputWarning::CurrentAboveRating => {
-                current_above_rating && mode == ControlMode::Current
-            }
-            InputWarning::NoDriverSupply => no_driver_supply && !ideal && moving,
-            InputWarning::NoHydraulicSupply => no_hydraulic_supply && moving,
-        })
+        suspects.confirmed(v)
     }
 
     /// The log line for `warning`, naming the inputs.
@@ -571,6 +591,32 @@ impl Model {
                 "the valve has no supply pressure and the piston cannot be driven",
             ),
         }
+    }
+}
+
+/// The value tests of [`Model::input_warnings`], before the modes are decoded.
+struct WarningSuspects {
+    current_above_rating: bool,
+    no_driver_supply: bool,
+    no_hydraulic_supply: bool,
+}
+
+impl WarningSuspects {
+    /// Which conditions hold, now that a value test held. Out of line: the common step
+    /// has no suspect and stops at the tests.
+    #[inline(never)]
+    fn confirmed(&self, v: &[f64; N_VARIABLES]) -> [bool; InputWarning::ALL.len()] {
+        let mode = control_mode(v);
+        let moving = asks_for_motion(mode, v);
+        // The ideal current driver has no supply to miss.
+        let ideal = matches!(DriverKind::from_code(v[vr::DRIVER]), Ok(DriverKind::IdealCurrent));
+        InputWarning::ALL.map(|warning| match warning {
+            InputWarning::CurrentAboveRating => {
+                self.current_above_rating && mode == ControlMode::Current
+            }
+            InputWarning::NoDriverSupply => self.no_driver_supply && !ideal && moving,
+            InputWarning::NoHydraulicSupply => self.no_hydraulic_supply && moving,
+        })
     }
 }
 
@@ -625,6 +671,15 @@ impl State {
             return Err(e);
         }
         Ok(())
+    }
+
+    /// Writes the outputs read off the state after a step that moved; the laws' outputs,
+    /// written as 0 here, are computed when read. Out of line: a resting step skips it,
+    /// and inlined it would weigh on every step's frame.
+    #[inline(never)]
+    fn write_state_outputs(&mut self) {
+        write_outputs(&self.physics.state_outputs(), &mut self.values);
+        self.laws_due = true;
     }
 
     /// Writes the physics' outputs into their value references.

@@ -110,6 +110,7 @@ impl Physics {
     /// supply at or above the relief valves' setting; reports relief valves that opened.
     /// `None` for a step that changes nothing (`Physics::rests`; its supply passed with the
     /// step before): the state, and so the outputs, stay as they are.
+    #[inline]
     pub fn step(
         &mut self,
         inputs: &Inputs,
@@ -119,6 +120,18 @@ impl Physics {
         if self.rests(inputs, step) {
             return Ok(None);
         }
+        self.step_moving(inputs, t_start, step).map(Some)
+    }
+
+    /// [`Physics::step`] of a step that does not rest. Out of line, so that a resting step
+    /// is a comparison in the caller.
+    #[inline(never)]
+    fn step_moving(
+        &mut self,
+        inputs: &Inputs,
+        t_start: f64,
+        step: f64,
+    ) -> Result<StepEvents, String> {
         let c = &self.actuator.params.cylinder;
         c.check_supply(inputs.p_supply)?;
         let relief_before = cylinder::relief_open(c, &self.actuator.cylinder.state);
@@ -133,7 +146,7 @@ impl Physics {
         let a = &self.actuator;
         let relief_after = cylinder::relief_open(&a.params.cylinder, &a.cylinder.state);
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);
-        Ok(Some(events))
+        Ok(events)
     }
 }
 

@@ -67,33 +67,49 @@ impl<M: ModelContract> Instance<M> {
             return self.error(&e);
         }
         if let Some(stop) = self.stop_time {
+            // The tolerance (h is positive and finite here) is only worked out for a step
+            // that ends after stopTime at all.
             let end = t + h;
-            if end > stop + communication_point_tolerance(stop, h) {
+            if end > stop && end > stop + communication_point_tolerance(stop, h) {
                 return self.error(&format!(
                     "a step from {t} by {h} ends at {end}, after stopTime {stop}"
                 ));
             }
         }
         let conditions = self.model.warnings();
-        let logs_events = self.enabled(LOG_EVENTS);
+        let stepped = if self.enabled(LOG_EVENTS) {
+            self.step_logging_events(t, h)
+        } else {
+            self.model.step(t, h, None)
+        };
+        match stepped {
+            Ok(()) => Ok(self.warn_about_inputs(t, conditions)),
+            Err(e) => self.step_failed(&e),
+        }
+    }
+
+    /// The model's step with its events collected and, once it succeeded, logged. Out of
+    /// line: only a host that asked for logEvents pays for the collection.
+    #[inline(never)]
+    fn step_logging_events(&mut self, t: f64, h: f64) -> Result<(), String> {
         let mut events = Vec::new();
         let mut collect = |line: &str| events.push(line.to_owned());
-        let log_event = logs_events.then_some(&mut collect as &mut dyn FnMut(&str));
-        match self.model.step(t, h, log_event) {
-            Ok(()) => {
-                for line in &events {
-                    self.log(Status::OK, LOG_EVENTS, line);
-                }
-                Ok(self.warn_about_inputs(t, conditions))
-            }
-            Err(e) => {
-                self.state = State::Error;
-                self.error(&format!(
-                    "{e}; the step failed and the instance is in the Error state \
-                     (SetFMUState to an earlier state, Reset or FreeInstance go on)"
-                ))
-            }
+        self.model.step(t, h, Some(&mut collect))?;
+        for line in &events {
+            self.log(Status::OK, LOG_EVENTS, line);
         }
+        Ok(())
+    }
+
+    /// A step whose computation failed: the Error state, and the log line saying so.
+    #[cold]
+    #[inline(never)]
+    fn step_failed(&mut self, e: &str) -> Result<Status, Status> {
+        self.state = State::Error;
+        self.error(&format!(
+            "{e}; the step failed and the instance is in the Error state \
+             (SetFMUState to an earlier state, Reset or FreeInstance go on)"
+        ))
     }
 
     /// Warning (and one logStatusWarning line each) for the input conditions that began

@@ -74,6 +74,8 @@ impl State {
 pub(crate) struct States(u8);
 
 impl States {
+    pub(crate) const NONE: States = States(0);
+
     const fn of(states: &[State]) -> States {
         let (mut bits, mut i) = (0, 0);
         while i < states.len() {
@@ -83,6 +85,7 @@ impl States {
         States(bits)
     }
 
+    #[inline]
     pub(crate) fn contains(self, state: State) -> bool {
         self.0 & state.bit() != 0
     }

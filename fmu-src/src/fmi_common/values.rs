@@ -7,9 +7,9 @@ use std::ffi::c_int;
 
 use super::instance::Instance;
 use super::logging::Status;
-use super::state_machine::{settable_in, Version};
+use super::state_machine::{settable_in, States, Version};
 use crate::contract::ModelContract;
-use crate::variables::{Causality, VarType, Variability};
+use crate::variables::{Causality, VarType, Variability, Variable};
 
 /// Conversions between a C value type and the model's `f64`, and which variable
 /// types the accessor serves. One zero-sized type per FMI getter/setter family.
@@ -17,21 +17,20 @@ pub(crate) trait Access {
     type C: Copy;
     /// The FMI type name in messages ("Real", "Float64", ...).
     const NAME: &'static str;
-    fn accepts(ty: VarType) -> bool;
+    /// The variable types the accessor serves, as [`type_bit`]s.
+    const SERVES: u8;
     fn to_c(v: f64) -> Self::C;
     fn from_c(c: Self::C) -> f64;
 }
 
 macro_rules! access {
-    ($(#[$doc:meta])* $name:ident, $c:ty, $label:literal, $accepts:expr, $to:expr, $from:expr) => {
+    ($(#[$doc:meta])* $name:ident, $c:ty, $label:literal, $serves:expr, $to:expr, $from:expr) => {
         $(#[$doc])*
         pub(crate) struct $name;
         impl Access for $name {
             type C = $c;
             const NAME: &'static str = $label;
-            fn accepts(ty: VarType) -> bool {
-                ($accepts)(ty)
-            }
+            const SERVES: u8 = $serves;
             fn to_c(v: f64) -> $c {
                 ($to)(v)
             }
@@ -43,37 +42,78 @@ macro_rules! access {
 }
 
 // Values are exact: enumeration values and Booleans are small integers stored in f64.
-access!(Real2, f64, "Real", |t| t == VarType::Real, |v| v, |c| c);
+access!(Real2, f64, "Real", REAL, |v| v, |c| c);
 access!(
     /// fmi2Integer serves enumerations (FMI 2 has no separate enumeration accessor).
-    Integer2, c_int, "Integer", |t| matches!(t, VarType::Enumeration(_)), |v: f64| v as c_int, |c: c_int| c as f64
+    Integer2, c_int, "Integer", ENUMERATION, |v: f64| v as c_int, |c: c_int| c as f64
 );
 access!(
     Boolean2,
     c_int,
     "Boolean",
-    |t| t == VarType::Boolean,
+    BOOLEAN,
     |v: f64| (v != 0.0) as c_int,
     |c: c_int| (c != 0) as u8 as f64
 );
-access!(Float64, f64, "Float64", |t| t == VarType::Real, |v| v, |c| c);
+access!(Float64, f64, "Float64", REAL, |v| v, |c| c);
 access!(
     /// FMI 3 enumerations are Int64.
-    Int64, i64, "Int64", |t| matches!(t, VarType::Enumeration(_)), |v: f64| v as i64, |c: i64| c as f64
+    Int64, i64, "Int64", ENUMERATION, |v: f64| v as i64, |c: i64| c as f64
 );
 access!(
     /// fmi3Boolean is C `bool`; read as a byte so a non-0/1 byte from C is no UB.
-    Boolean3, u8, "Boolean", |t| t == VarType::Boolean, |v: f64| (v != 0.0) as u8, |c: u8| (c != 0) as u8 as f64
+    Boolean3, u8, "Boolean", BOOLEAN, |v: f64| (v != 0.0) as u8, |c: u8| (c != 0) as u8 as f64
 );
 // FMI 3 types this FMU has no variables of: every value reference is refused.
-access!(Float32, f32, "Float32", |_| false, |v: f64| v as f32, |c: f32| c as f64);
-access!(Int8, i8, "Int8", |_| false, |v: f64| v as i8, |c: i8| c as f64);
-access!(UInt8, u8, "UInt8", |_| false, |v: f64| v as u8, |c: u8| c as f64);
-access!(Int16, i16, "Int16", |_| false, |v: f64| v as i16, |c: i16| c as f64);
-access!(UInt16, u16, "UInt16", |_| false, |v: f64| v as u16, |c: u16| c as f64);
-access!(Int32, i32, "Int32", |_| false, |v: f64| v as i32, |c: i32| c as f64);
-access!(UInt32, u32, "UInt32", |_| false, |v: f64| v as u32, |c: u32| c as f64);
-access!(UInt64, u64, "UInt64", |_| false, |v: f64| v as u64, |c: u64| c as f64);
+access!(Float32, f32, "Float32", 0, |v: f64| v as f32, |c: f32| c as f64);
+access!(Int8, i8, "Int8", 0, |v: f64| v as i8, |c: i8| c as f64);
+access!(UInt8, u8, "UInt8", 0, |v: f64| v as u8, |c: u8| c as f64);
+access!(Int16, i16, "Int16", 0, |v: f64| v as i16, |c: i16| c as f64);
+access!(UInt16, u16, "UInt16", 0, |v: f64| v as u16, |c: u16| c as f64);
+access!(Int32, i32, "Int32", 0, |v: f64| v as i32, |c: i32| c as f64);
+access!(UInt32, u32, "UInt32", 0, |v: f64| v as u32, |c: u32| c as f64);
+access!(UInt64, u64, "UInt64", 0, |v: f64| v as u64, |c: u64| c as f64);
+
+// The variable types, one bit each, for the accessors' `SERVES` and the access table.
+const REAL: u8 = 1;
+const BOOLEAN: u8 = 2;
+const ENUMERATION: u8 = 4;
+
+const fn type_bit(ty: VarType) -> u8 {
+    match ty {
+        VarType::Real => REAL,
+        VarType::Boolean => BOOLEAN,
+        VarType::Enumeration(_) => ENUMERATION,
+    }
+}
+
+/// The most variables a model may have for [`access_table`].
+const MAX_VARIABLES: usize = 256;
+
+/// What the getters and setters check of a variable on every call, precomputed from the
+/// model's table: its type (a [`type_bit`]) and the states it may be set in. Rows past the
+/// table's end serve no type, so their references are refused as unknown.
+#[derive(Clone, Copy)]
+struct VariableAccess {
+    type_bit: u8,
+    settable: States,
+}
+
+const fn access_table(variables: &[Variable]) -> [VariableAccess; MAX_VARIABLES] {
+    assert!(variables.len() <= MAX_VARIABLES, "more variables than MAX_VARIABLES");
+    let none = VariableAccess { type_bit: 0, settable: States::NONE };
+    let mut table = [none; MAX_VARIABLES];
+    let mut i = 0;
+    while i < variables.len() {
+        let settable = match settable_in(&variables[i]) {
+            Some(states) => states,
+            None => States::NONE,
+        };
+        table[i] = VariableAccess { type_bit: type_bit(variables[i].ty), settable };
+        i += 1;
+    }
+    table
+}
 
 /// Type name of a variable as the given FMI version spells it.
 fn type_label(ty: VarType, version: Version) -> String {
@@ -91,11 +131,14 @@ fn type_label(ty: VarType, version: Version) -> String {
 }
 
 impl<M: ModelContract> Instance<M> {
+    /// The getters' and setters' view of the model's variables, indexed by value reference.
+    const ACCESS: &'static [VariableAccess; MAX_VARIABLES] = &access_table(M::VARIABLES);
+
     /// The index of value reference `vr` if it names a variable of a type the accessor serves.
     #[inline]
     fn resolve<A: Access>(&self, vr: u32) -> Result<usize, Status> {
-        match M::VARIABLES.get(vr as usize) {
-            Some(var) if A::accepts(var.ty) => Ok(vr as usize),
+        match Self::ACCESS.get(vr as usize) {
+            Some(access) if access.type_bit & A::SERVES != 0 => Ok(vr as usize),
             _ => self.refuse_reference(vr, A::NAME),
         }
     }
@@ -113,18 +156,30 @@ impl<M: ModelContract> Instance<M> {
         ))
     }
 
-    /// May variable `index` be set in the current state? (The table's
-    /// [`settable_in`].)
+    /// The index of value reference `vr` if it names a variable of a type the accessor
+    /// serves that may be set in the current state (the table's [`settable_in`]).
     #[inline]
-    fn check_settable(&self, index: usize) -> Result<(), Status> {
-        let var = &M::VARIABLES[index];
-        match settable_in(var) {
-            Some(allowed) if allowed.contains(self.state) => Ok(()),
-            _ => self.refuse_setting(index),
+    fn resolve_settable<A: Access>(&self, vr: u32) -> Result<usize, Status> {
+        match Self::ACCESS.get(vr as usize) {
+            Some(access)
+                if access.type_bit & A::SERVES != 0 && access.settable.contains(self.state) =>
+            {
+                Ok(vr as usize)
+            }
+            _ => self.refuse_to_set::<A>(vr),
         }
     }
 
-    /// Error for setting variable `index`, which [`Instance::check_settable`] refused.
+    /// Error for a reference [`Instance::resolve_settable`] refused: unknown or of another
+    /// type first, then not settable now.
+    #[cold]
+    #[inline(never)]
+    fn refuse_to_set<A: Access>(&self, vr: u32) -> Result<usize, Status> {
+        let index = self.resolve::<A>(vr)?;
+        self.refuse_setting(index).map(|()| index)
+    }
+
+    /// Error for setting variable `index`, which [`Instance::resolve_settable`] refused.
     #[cold]
     #[inline(never)]
     fn refuse_setting(&self, index: usize) -> Result<(), Status> {
@@ -204,8 +259,7 @@ impl<M: ModelContract> Instance<M> {
             (self.slice("valueReferences", vrs, n_vr)?, self.slice("values", values, n_values)?)
         };
         for &vr in vrs {
-            let index = self.resolve::<A>(vr)?;
-            self.check_settable(index)?;
+            self.resolve_settable::<A>(vr)?;
         }
         // All or nothing; tunable parameters set in Step Mode rebuild the physics here.
         let result = self
@@ -238,8 +292,7 @@ impl<M: ModelContract> Instance<M> {
             )
         };
         for &vr in vrs {
-            let index = self.resolve::<Real2>(vr)?;
-            self.check_settable(index)?;
+            self.resolve_settable::<Real2>(vr)?;
         }
         let mut model = self.model.clone();
         for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {

@@ -392,6 +392,80 @@ const MAX_LOOP_TIME: f64 = 1.0;
 /// which bounds `x_ref`).
 const MAX_STROKE: f64 = 1.0;
 
+/// What a setter needs of a variable, precomputed from its row ([`SET_RULES`]): setters
+/// run on every communication step, and the common case, a real value within its range,
+/// then costs a look-up and two compares instead of the walk through the row's options
+/// that [`Variable::check`] and [`Variable::may_be_set`] take.
+#[derive(Clone, Copy, Debug)]
+pub struct SetRule {
+    /// [`Variable::may_be_set`] before initialisation ends.
+    pub before_initialisation: bool,
+    /// [`Variable::may_be_set`] after initialisation.
+    pub after_initialisation: bool,
+    /// A parameter: a new value after initialisation rebuilds the physics.
+    pub parameter: bool,
+    /// The closed interval of values that [`Variable::check`] accepts for a real variable,
+    /// with finite ends so that NaN and the infinities fall outside it; empty for Booleans
+    /// and enumerations, whose values the full check decides.
+    lo: f64,
+    hi: f64,
+}
+
+impl SetRule {
+    const fn of(v: &Variable) -> SetRule {
+        let (lo, hi) = match v.ty {
+            VarType::Real => (
+                match v.min {
+                    Some(min) if v.min_exclusive => min.next_up(),
+                    Some(min) => min,
+                    None => f64::MIN,
+                }
+                .max(f64::MIN),
+                match v.max {
+                    Some(max) => max,
+                    None => f64::MAX,
+                }
+                .min(f64::MAX),
+            ),
+            VarType::Boolean | VarType::Enumeration(_) => (f64::INFINITY, f64::NEG_INFINITY),
+        };
+        SetRule {
+            before_initialisation: v.may_be_set(false),
+            after_initialisation: v.may_be_set(true),
+            parameter: matches!(v.causality, Causality::Parameter),
+            lo,
+            hi,
+        }
+    }
+
+    /// [`Variable::may_be_set`].
+    #[inline]
+    pub fn may_be_set(&self, initialized: bool) -> bool {
+        if initialized {
+            self.after_initialisation
+        } else {
+            self.before_initialisation
+        }
+    }
+
+    /// Whether `value` surely passes [`Variable::check`]; `false` leaves it to the check.
+    #[inline]
+    pub fn surely_accepts(&self, value: f64) -> bool {
+        self.lo <= value && value <= self.hi
+    }
+}
+
+/// [`SetRule`] of every variable, indexed by value reference.
+pub static SET_RULES: [SetRule; N_VARIABLES] = {
+    let mut rules = [SetRule::of(&VARIABLES[0]); N_VARIABLES];
+    let mut i = 1;
+    while i < N_VARIABLES {
+        rules[i] = SetRule::of(&VARIABLES[i]);
+        i += 1;
+    }
+    rules
+};
+
 /// Declares the table and, from the same rows, one constant per variable in [`vr`] (the
 /// value reference of a variable is its row, so no reference is ever numbered by hand) and
 /// the binding of each row to its typed field: `param[coil.inductance] real` is the field
@@ -911,6 +985,28 @@ mod tests {
     fn start_values_pass_their_own_checks() {
         for v in VARIABLES.iter().filter(|v| v.has_start()) {
             v.check(v.start).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_value_the_set_rule_surely_accepts_passes_the_check() {
+        for (v, rule) in VARIABLES.iter().zip(SET_RULES.iter()) {
+            assert_eq!(rule.may_be_set(false), v.may_be_set(false), "{}", v.name);
+            assert_eq!(rule.may_be_set(true), v.may_be_set(true), "{}", v.name);
+            assert_eq!(rule.parameter, v.causality == Parameter, "{}", v.name);
+            let mut probes = vec![0.0, -0.0, 1.0, -1.0, v.start, f64::NAN, f64::INFINITY];
+            probes.extend([f64::NEG_INFINITY, f64::MAX, f64::MIN, f64::MIN_POSITIVE, 5e-324]);
+            for bound in [v.min, v.max].into_iter().flatten() {
+                probes.extend([bound, bound.next_up(), bound.next_down(), -bound]);
+            }
+            for value in probes {
+                let checked = v.check(value).is_ok();
+                if rule.surely_accepts(value) {
+                    assert!(checked, "{} = {value} passes the rule, not the check", v.name);
+                } else if v.ty == VarType::Real {
+                    assert!(!checked, "{} = {value} passes the check, not the rule", v.name);
+                }
+            }
         }
     }
 
