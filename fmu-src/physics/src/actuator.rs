@@ -172,6 +172,9 @@ impl Actuator {
     /// the mode chosen again.
     pub(crate) fn follow_command(&mut self, inputs: &HeldInputs, events: &mut StepEvents) {
         let i_cmd = self.current_command(inputs);
+        if self.z[I_CMD] != i_cmd && self.z[RAIL] == inputs.rail && self.starts_a_slew(i_cmd) {
+            return;
+        }
         if self.z[I_CMD] != i_cmd || self.z[RAIL] != inputs.rail {
             let mut z = self.z;
             driver::apply_inputs(&self.params, &mut z, i_cmd, inputs.rail);
@@ -180,6 +183,29 @@ impl Actuator {
             driver::count_switch(events, before, self.mode);
             self.z = z;
         }
+    }
+
+    /// The most common new command, a loop's sample or a command's next value to a PI
+    /// driver in its linear mode free of valve stops: where it puts the PI law's value
+    /// beyond the output by more than the tolerance, the driver slews towards it (the
+    /// outcome of [`driver::consistent_mode`]'s first tests, which [`Actuator::settle`]
+    /// would reach the long way), and the new command is taken with no more work.
+    /// `false`, nothing changed, for any other case.
+    fn starts_a_slew(&mut self, i_cmd: f64) -> bool {
+        let c = &self.params;
+        if self.mode != Mode::Linear
+            || !matches!(c.driver, DriverKind::OpampPi | DriverKind::Industrial)
+            || valve::has_stops(c)
+        {
+            return false;
+        }
+        let mut z = self.z;
+        z[I_CMD] = i_cmd;
+        let Some(slew) = driver::slew_towards_law(c, &z) else {
+            return false;
+        };
+        (self.mode, self.z) = (slew, z);
+        true
     }
 
     /// The outputs at the current state (F_rod: the force at the state).

@@ -160,6 +160,22 @@ pub(crate) fn surely_linear(c: &Coefficients, a: &Mat, z: &Vector) -> bool {
     u_lin < vmax - tol && u_lin > -vmax + tol && (-c.slew_rate..=c.slew_rate).contains(&du)
 }
 
+/// A PI driver's slew where its output at `z` is further than the tolerance from the law's
+/// value (clamped to the rails): [`consistent_mode`]'s first tests. `None` within it.
+#[inline]
+pub(crate) fn slew_towards_law(c: &Coefficients, z: &Vector) -> Option<Mode> {
+    let vmax = z[RAIL];
+    let target = u_lin(c, z).clamp(-vmax, vmax);
+    let tol = 1e-9 * (1.0 + vmax);
+    if z[U] < target - tol {
+        Some(Mode::SlewUp)
+    } else if z[U] > target + tol {
+        Some(Mode::SlewDown)
+    } else {
+        None
+    }
+}
+
 /// The mode the driver is in at state `z` (`a_of`: each mode's system); on a boundary the
 /// direction of motion decides, so a mode is never entered only to be left at once.
 pub(crate) fn consistent_mode<'a>(
@@ -173,17 +189,14 @@ pub(crate) fn consistent_mode<'a>(
         DriverKind::HBridge => return Mode::Switched,
         DriverKind::OpampPi | DriverKind::Industrial => {}
     }
+    if let Some(slew) = slew_towards_law(c, z) {
+        return slew;
+    }
     let vmax = z[RAIL];
     let e = z[I_CMD] - z[I];
     let u_lin = u_lin(c, z);
     let target = u_lin.clamp(-vmax, vmax);
     let tol = 1e-9 * (1.0 + vmax);
-    if z[U] < target - tol {
-        return Mode::SlewUp;
-    }
-    if z[U] > target + tol {
-        return Mode::SlewDown;
-    }
     let high = if e > 0.0 { Mode::HighFrozen } else { Mode::HighIntegrating };
     let low = if e < 0.0 { Mode::LowFrozen } else { Mode::LowIntegrating };
     let rate_in = |mode: Mode| {
