@@ -15,7 +15,9 @@
 //! be loaded), `--all-h` (the quadruped at every h, not only 1e-4), `--lib PATH`,
 //! `--instructions-only` (only the instructions per communication step, counted with
 //! callgrind: `instructions.rs`), `--instr-steps N` (steps counted, default 5000, 500 with
-//! `--quick`), `--no-instructions` (no callgrind runs; without valgrind they are skipped).
+//! `--quick`), `--no-instructions` (no callgrind runs; without valgrind they are skipped),
+//! `--mujoco` (after the table, the quadruped as MuJoCo plugins against MuJoCo's own
+//! position actuators: `mujoco.rs`), `--mujoco-only` (that alone).
 //!
 //! It exits non-zero if any call fails, FMI 2 and FMI 3 give different outputs, the idle
 //! instance's outputs move, the step-to-rest current does not end at 5 mA, an output strays
@@ -27,6 +29,7 @@
 mod fmi;
 mod fmu_run;
 mod instructions;
+mod mujoco;
 mod peer;
 mod reference;
 mod report;
@@ -84,6 +87,9 @@ struct Options {
     /// Print only those (`--instructions-only`), and over how many steps.
     instructions_only: bool,
     instr_steps: usize,
+    /// The MuJoCo plugin's rollouts after the table (`--mujoco`), or alone (`--mujoco-only`).
+    mujoco: bool,
+    mujoco_only: bool,
 }
 
 fn default_library() -> PathBuf {
@@ -120,6 +126,8 @@ fn parse() -> Result<Options, String> {
         instructions: true,
         instructions_only: false,
         instr_steps: instructions::STEPS,
+        mujoco: false,
+        mujoco_only: false,
     };
     let mut args = std::env::args().skip(1);
     let number = |v: Option<String>, what: &str| -> Result<f64, String> {
@@ -168,6 +176,8 @@ fn parse() -> Result<Options, String> {
             "--require-peer" => o.require_peer = true,
             "--all-h" => o.all_h = true,
             "--no-instructions" => o.instructions = false,
+            "--mujoco" => o.mujoco = true,
+            "--mujoco-only" => o.mujoco_only = true,
             "--instructions-only" => o.instructions_only = true,
             "--instr-steps" => {
                 o.instr_steps = number(args.next(), "--instr-steps")?.max(1.0) as usize
@@ -499,7 +509,7 @@ fn main() -> ExitCode {
             if !e.is_empty() {
                 eprintln!("bench: {e}");
             }
-            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--fmu-rtol R] [--h-internal S] [--no-peer] [--require-peer] [--all-h] [--lib PATH] [--instructions-only] [--instr-steps N] [--no-instructions]");
+            eprintln!("usage: bench [--quick] [--t-end S] [--h LIST] [--fmi 2|3|both] [--only NAME,NAME] [--repeat N] [--peer-rtol R] [--reference-rtol R] [--fmu-rtol R] [--h-internal S] [--no-peer] [--require-peer] [--all-h] [--lib PATH] [--instructions-only] [--instr-steps N] [--no-instructions] [--mujoco] [--mujoco-only]");
             return if e.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
         }
     };
@@ -512,6 +522,9 @@ fn main() -> ExitCode {
     if o.instructions_only {
         return exit_with(print_instructions_only(&o));
     }
+    if o.mujoco_only {
+        return exit_with(mujoco::print_rollouts());
+    }
     let (fmus, cvode) = match load_fmus(&o).and_then(|fmus| Ok((fmus, load_peer(&o)?))) {
         Ok(loaded) => loaded,
         Err(e) => {
@@ -520,8 +533,13 @@ fn main() -> ExitCode {
         }
     };
     print_preamble(&o);
-    let results = measure_all(&o, &fmus, cvode.as_ref());
+    let mut results = measure_all(&o, &fmus, cvode.as_ref());
     print_closing(&o, &results);
+    if o.mujoco {
+        if let Err(e) = mujoco::print_rollouts() {
+            results.problems.push(e);
+        }
+    }
     for p in &results.problems {
         eprintln!("bench: {p}");
     }
