@@ -235,3 +235,19 @@ fn a_restored_fixed_cost_instance_continues_bit_for_bit() {
     assert_eq!(restored.get(vr::SOLVER_METHOD), Some(1.0));
     assert_eq!(trace(&mut m, 0.05, 1e-4, &command), trace(&mut restored, 0.05, 1e-4, &command));
 }
+
+/// A retune that rebuilds the driver's systems (a new `driver.Kp`) builds their propagators
+/// in the setter, as initialisation does: the doSteps after it build none (the work counter
+/// of matrix exponentials stands still over them, on a sine whose slews visit the modes).
+#[test]
+fn a_retune_builds_its_propagators_ahead() {
+    let s = sine(20.0, 5e-3);
+    let mut m = model(&[driver("opamp_pi"), method("fixed_cost")]);
+    let input = |t: f64| (vr::I_REF, s(t));
+    trace(&mut m, 0.05, 1e-4, &input);
+    let kp = vr::DRIVER_KP;
+    m.set(kp, 1.2 * m.get(kp).unwrap()).unwrap();
+    let built = m.work().exponentials;
+    trace(&mut m, 0.1, 1e-4, &input);
+    assert_eq!(m.work().exponentials, built, "exponentials built in doSteps after the retune");
+}

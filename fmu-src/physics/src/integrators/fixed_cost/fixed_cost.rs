@@ -55,6 +55,9 @@ pub(crate) struct FixedCostIntegrator {
     ladders: DyadicLadders,
     /// The mode pairs whose slew ends [`slew_end`] takes.
     slew_exits: slew_end::SlewExits,
+    /// The communication step the propagators were built ahead for, to build them again
+    /// when a retune changes the systems.
+    prepared_for: Option<f64>,
 }
 
 impl FixedCostIntegrator {
@@ -64,6 +67,7 @@ impl FixedCostIntegrator {
             whole: WholeSteps::new(),
             ladders: DyadicLadders::new(h_internal),
             slew_exits: slew_end::slew_exits(&actuator.systems),
+            prepared_for: None,
         }
     }
 
@@ -99,6 +103,7 @@ impl Integrator for FixedCostIntegrator {
     /// period, for every mode at the stops the probe ended in: a mode's first use inside a
     /// doStep would otherwise build its exponential there (the slowest doSteps).
     fn prepare(&mut self, actuator: &Actuator, step: f64) {
+        self.prepared_for = Some(step);
         let c = &actuator.params;
         let looping = c.loops.mode != ControlMode::Current;
         for span in [Some(step), looping.then(|| 1.0 / c.loops.f_sample)].into_iter().flatten() {
@@ -116,13 +121,19 @@ impl Integrator for FixedCostIntegrator {
     fn adopt_prepared(&mut self, probe: FixedCostIntegrator) {
         self.whole = probe.whole;
         self.ladders = probe.ladders;
+        self.prepared_for = probe.prepared_for;
     }
 
+    /// New systems: their propagators built here, in the setter that retuned, as at
+    /// initialisation, so that no doStep after it builds one.
     fn retuned(&mut self, actuator: &Actuator, systems_rebuilt: bool) {
         if systems_rebuilt {
             self.whole.clear();
             self.ladders.clear();
             self.slew_exits = slew_end::slew_exits(&actuator.systems);
+            if let Some(step) = self.prepared_for {
+                self.prepare(actuator, step);
+            }
         }
     }
 
