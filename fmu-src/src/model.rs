@@ -171,7 +171,8 @@ impl Model {
         let state = self.state.get_mut();
         let changes = changes.into_iter();
         // Everything that can refuse a value alone is checked before anything is written.
-        let (mut retune, mut moved, mut changed) = (false, false, false);
+        let (mut retune, mut changed) = (false, false);
+        let (mut moved_ref, mut moved_rod) = (false, false);
         let (mut x_ref, mut x_rod) = (state.values[vr::X_REF], state.values[vr::X_ROD]);
         for (index, value) in changes.clone() {
             let rule = match SET_RULES.get(index) {
@@ -194,15 +195,19 @@ impl Model {
             }
             changed = true;
             retune |= rule.parameter;
-            moved |= matches!(index, vr::X_REF | vr::X_ROD);
+            moved_ref |= index == vr::X_REF;
+            moved_rod |= index == vr::X_ROD;
         }
         if !changed {
             // Every value is the one held: nothing to write, no output to rebuild.
             return Ok(());
         }
-        if initialized && moved {
-            // The geometry is fixed once initialised: positions held fitted it when set.
-            check_positions_fit(x_ref, x_rod, &state.values)?;
+        // The geometry is fixed once initialised: a position held fitted it when set.
+        if initialized && moved_ref {
+            check_x_ref_fits(x_ref, &state.values)?;
+        }
+        if initialized && moved_rod {
+            check_x_rod_fits(x_rod, &state.values)?;
         }
         if initialized && retune {
             return state.retune(&mut changes.into_iter(), self.time);
@@ -490,12 +495,12 @@ fn check_input_derivative(index: usize, value: f64) -> Result<(), String> {
 /// x_ref within the stroke and x_rod within the rod's travel (the table bounds them by the
 /// longest stroke allowed).
 fn check_inputs_fit(v: &[f64; N_VARIABLES]) -> Result<(), String> {
-    check_positions_fit(v[vr::X_REF], v[vr::X_ROD], v)
+    check_x_ref_fits(v[vr::X_REF], v)?;
+    check_x_rod_fits(v[vr::X_ROD], v)
 }
 
-/// x_ref within +-stroke/2; x_rod within the stroke and the end stops' deepest
-/// penetration, [`CylinderLoadParams::rod_travel`], for the geometry in `v`.
-fn check_positions_fit(x_ref: f64, x_rod: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
+/// x_ref within +-stroke/2 for the geometry in `v`.
+fn check_x_ref_fits(x_ref: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
     let half = 0.5 * v[vr::CYLINDER_STROKE];
     if x_ref.abs() > half {
         return Err(format!(
@@ -503,6 +508,12 @@ fn check_positions_fit(x_ref: f64, x_rod: f64, v: &[f64; N_VARIABLES]) -> Result
             -half
         ));
     }
+    Ok(())
+}
+
+/// x_rod within the stroke and the end stops' deepest penetration,
+/// [`CylinderLoadParams::rod_travel`], for the geometry in `v`.
+fn check_x_rod_fits(x_rod: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
     let geometry = CylinderLoadParams {
         bore: v[vr::CYLINDER_BORE],
         rod: v[vr::CYLINDER_ROD],
