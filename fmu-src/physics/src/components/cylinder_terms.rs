@@ -164,7 +164,17 @@ pub(crate) fn endstop_force(params: &CylinderParams, x: f64, v: f64) -> (f64, f6
 /// and its slopes `(dF/dx, dF/dv)` (the pressures' are the areas).
 #[inline(always)]
 pub(crate) fn net_force(params: &CylinderParams, state: &CylinderState, f_ext: f64) -> [f64; 3] {
-    let (friction, dfriction_dv) = friction(params, state.v);
+    net_force_with(params, state, f_ext, friction(params, state.v))
+}
+
+/// [`net_force`] with the friction and its slope at the state's velocity already known.
+#[inline(always)]
+pub(crate) fn net_force_with(
+    params: &CylinderParams,
+    state: &CylinderState,
+    f_ext: f64,
+    (friction, dfriction_dv): (f64, f64),
+) -> [f64; 3] {
     let (contact, dcontact_dx, dcontact_dv) = endstop_force(params, state.x, state.v);
     let force =
         state.p_a * params.area_a() - state.p_b * params.area_b() - friction + f_ext + contact;
