@@ -4,7 +4,7 @@
 
 use crate::components::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V};
 use crate::components::cylinder_terms::{
-    cavitation_factor, chamber_terms, friction, net_force_with,
+    at_least, cavitation_factor, chamber_terms, friction, net_force_with,
 };
 use crate::params::RodPort;
 
@@ -131,7 +131,7 @@ pub(crate) fn secant_friction(params: &CylinderParams, y: &Vec4, h: f64, l: &mut
     }
     let (v0, v1) = (y[V], y[V] + h * l.rates[V]);
     let band = CREEP_BAND * params.v_friction_smooth;
-    if (v0 * v1 > 0.0 && v0.abs().min(v1.abs()) > band) || v1 == v0 {
+    if (v0 * v1 > 0.0 && v0.abs() > band && v1.abs() > band) || v1 == v0 {
         return;
     }
     let (f0, tangent) = l.friction;
@@ -152,7 +152,7 @@ pub(crate) fn secant_cavitation(params: &CylinderParams, y: &Vec4, h: f64, l: &m
     let top = params.p_cavitation + params.dp_cavitation_band;
     for k in [PA, PB] {
         let (p0, rate) = (y[k], l.rates[k]);
-        let p1 = (p0 + h * rate).max(params.p_cavitation);
+        let p1 = at_least(p0 + h * rate, params.p_cavitation);
         if rate >= 0.0 || p1 >= top {
             continue;
         }

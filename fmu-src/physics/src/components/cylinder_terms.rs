@@ -26,11 +26,25 @@ pub(crate) fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
 pub(crate) fn chamber_volumes(params: &CylinderParams, x: f64) -> [(f64, f64); 2] {
     let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
     let (volume_a, volume_b) = free_volumes(params, x);
-    let slope = |volume: f64, area: f64| if volume >= min_volume { area } else { 0.0 };
-    [
-        (volume_a.max(min_volume), slope(volume_a, params.area_a())),
-        (volume_b.max(min_volume), slope(volume_b, -params.area_b())),
-    ]
+    let clamped = |volume: f64, area: f64| {
+        if volume >= min_volume {
+            (volume, area)
+        } else {
+            (min_volume, 0.0)
+        }
+    };
+    [clamped(volume_a, params.area_a()), clamped(volume_b, -params.area_b())]
+}
+
+/// `x.max(floor)` for a `floor` that is not NaN (a NaN `x` gives `floor`, as with `max`) in one
+/// comparison, without `max`'s handling of a NaN `floor`.
+#[inline(always)]
+pub(crate) fn at_least(x: f64, floor: f64) -> f64 {
+    if x >= floor {
+        x
+    } else {
+        floor
+    }
 }
 
 /// The metering ports' flows (into A, out of B) at chamber pressures `p_a`, `p_b` for spool
@@ -44,7 +58,7 @@ pub(crate) fn port_flows(
     p_supply: f64,
 ) -> PortFlows {
     let floor = params.p_cavitation;
-    let at_floor = [p_a.max(floor), p_b.max(floor)];
+    let at_floor = [at_least(p_a, floor), at_least(p_b, floor)];
     let mut flows = params.ports.flows(x_s, at_floor, p_supply, params.p_tank);
     flows.dqa_dpa *= if p_a >= floor { 1.0 } else { 0.0 };
     flows.dqb_dpb *= if p_b >= floor { 1.0 } else { 0.0 };

@@ -25,7 +25,7 @@ use crate::components::cylinder::{CylinderParams, CylinderState, Vec4, PA, PB, V
 use crate::components::cylinder_jacobian::{
     linearisation, secant_cavitation, secant_friction, Linearisation,
 };
-use crate::components::cylinder_terms::{chamber_volumes, endstop_force, relief_flow};
+use crate::components::cylinder_terms::{at_least, chamber_volumes, endstop_force, relief_flow};
 use crate::held_inputs::HeldInputs;
 use crate::params::RodPort;
 
@@ -147,7 +147,7 @@ impl Linearised {
         let k = solve_shifted(&self.model, s, &rhs);
         let mut y1 = [y0[PA] + k[PA], y0[PB] + k[PB], y0[X] + k[X], y0[V] + k[V]];
         for p in [PA, PB] {
-            y1[p] = y1[p].max(params.p_cavitation);
+            y1[p] = at_least(y1[p], params.p_cavitation);
         }
         y1
     }
