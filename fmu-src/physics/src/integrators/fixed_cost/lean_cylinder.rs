@@ -229,7 +229,12 @@ fn contact_switch(params: &CylinderParams, (y0, contact0): (&Vec4, f64), y1: &Ve
 
 /// Solves `(I - s J) k = r` for the cylinder's Jacobian `J` (`model`'s rows; its position
 /// row is `x' = v`, `J[X] = e_V`): `k_x = r_x + s k_v` folds it into the other three rows,
-/// which Cramer's rule solves (three determinants of 3x3 minors over one division).
+/// which elimination in the order `p_A`, `p_B`, `v` solves. No pivoting: the pressures'
+/// diagonal entries `1 - s dp'/dp` are at least 1 (each term of a chamber's pressure rate
+/// falls as its own pressure rises: the orifices, leaks and relief valves pass less in or
+/// more out, the fade closes, and the secants that replace their slopes are steeper still),
+/// and the leak's coupling between the chambers is weaker than either diagonal, so that
+/// the second pivot stays above 1 as well.
 fn solve_shifted(model: &Linearisation, s: f64, r: &Vec4) -> Vec4 {
     // Rows PA, PB, V of (I - s J) with the X column folded into the V column.
     let row = |i: usize, j: &Vec4| {
@@ -241,17 +246,17 @@ fn solve_shifted(model: &Linearisation, s: f64, r: &Vec4) -> Vec4 {
     let (a0, b0) = row(PA, &model.d_pa);
     let (a1, b1) = row(PB, &model.d_pb);
     let (a2, b2) = row(V, &model.d_v);
-    let det3 = |c0: [f64; 3], c1: [f64; 3], c2: [f64; 3]| {
-        c0[0] * (c1[1] * c2[2] - c1[2] * c2[1]) - c1[0] * (c0[1] * c2[2] - c0[2] * c2[1])
-            + c2[0] * (c0[1] * c1[2] - c0[2] * c1[1])
+    // k_pa out of the rows PB and V, then k_pb out of the row V.
+    let without_pa = |a: [f64; 3], b: f64| {
+        let l = a[0] / a0[0];
+        ([a[1] - l * a0[1], a[2] - l * a0[2]], b - l * b0)
     };
-    // Columns of the 3x3 and of the right-hand side.
-    let col = |k: usize| [a0[k], a1[k], a2[k]];
-    let b = [b0, b1, b2];
-    let inv = 1.0 / det3(col(0), col(1), col(2));
-    let k_pa = det3(b, col(1), col(2)) * inv;
-    let k_pb = det3(col(0), b, col(2)) * inv;
-    let k_v = det3(col(0), col(1), b) * inv;
+    let (c1, d1) = without_pa(a1, b1);
+    let (c2, d2) = without_pa(a2, b2);
+    let l = c2[0] / c1[0];
+    let k_v = (d2 - l * d1) / (c2[1] - l * c1[1]);
+    let k_pb = (d1 - c1[1] * k_v) / c1[0];
+    let k_pa = (b0 - a0[1] * k_pb - a0[2] * k_v) / a0[0];
     [k_pa, k_pb, r[X] + s * k_v, k_v]
 }
 
