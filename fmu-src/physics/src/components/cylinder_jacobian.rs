@@ -64,11 +64,39 @@ pub(crate) fn linearisation(
     load: f64,
 ) -> Linearisation {
     let state = CylinderState::from_array(y);
-    let (area_a, area_b) = (params.area_a(), params.area_b());
-    let chambers = chamber_terms(params, &state, x_s, p_supply);
+    let chambers = pressure_rows(params, &state, x_s, p_supply);
+    // After the chambers' rows: the friction's libm calls (exp, tanh) find fewer values live.
     let friction = friction(params, state.v);
-    let [force, dforce_dx, dforce_dv] = net_force_with(params, &state, load, friction);
-    let [dp_a, dp_b] = chambers.pressure_rates;
+    let (acceleration, d_v) = motion_row(params, &state, load, friction);
+    Linearisation {
+        rates: [chambers.rates[0], chambers.rates[1], state.v, acceleration],
+        d_pa: chambers.d_pa,
+        d_pb: chambers.d_pb,
+        d_v,
+        d_xs: chambers.d_xs,
+        friction,
+    }
+}
+
+/// The pressures' side of a [`Linearisation`].
+struct PressureRows {
+    rates: [f64; 2],
+    d_pa: Vec4,
+    d_pb: Vec4,
+    d_xs: [f64; 2],
+}
+
+/// The chambers' pressure rates at `state`, their rows of the Jacobian and their slopes in
+/// the spool position, from [`chamber_terms`].
+#[inline(always)]
+fn pressure_rows(
+    params: &CylinderParams,
+    state: &CylinderState,
+    x_s: f64,
+    p_supply: f64,
+) -> PressureRows {
+    let (area_a, area_b) = (params.area_a(), params.area_b());
+    let chambers = chamber_terms(params, state, x_s, p_supply);
     let [(volume_a, dva_dx), (volume_b, dvb_dx)] = chambers.volumes;
     let [inflow_a, inflow_b] = chambers.inflows;
     let [(cf_a, dcfa_dpa), (cf_b, dcfb_dpb)] = chambers.cavitation;
@@ -91,26 +119,39 @@ pub(crate) fn linearisation(
         -stiff_b / volume_b * dvb_dx * inflow_b * cf_b,
         stiff_b * cf_b * area_b,
     ];
-    let (acceleration, d_v) = match params.port {
-        RodPort::Force => (
-            force / params.mass,
-            [
-                area_a / params.mass,
-                -area_b / params.mass,
-                dforce_dx / params.mass,
-                dforce_dv / params.mass,
-            ],
-        ),
-        // The host moves the rod at the acceleration `load`: nothing here acts back on it.
-        RodPort::Motion => (load, [0.0; N_STATES]),
-    };
-    Linearisation {
-        rates: [dp_a, dp_b, state.v, acceleration],
+    PressureRows {
+        rates: chambers.pressure_rates,
         d_pa,
         d_pb,
-        d_v,
         d_xs: [stiff_a * cf_a * ports.dqa_dxs, -stiff_b * cf_b * ports.dqb_dxs],
-        friction,
+    }
+}
+
+/// The rod's acceleration at `state` under `load` and its row of the Jacobian, with the
+/// friction and its slope `friction` at the state's velocity.
+#[inline(always)]
+fn motion_row(
+    params: &CylinderParams,
+    state: &CylinderState,
+    load: f64,
+    friction: (f64, f64),
+) -> (f64, Vec4) {
+    match params.port {
+        RodPort::Force => {
+            let [force, dforce_dx, dforce_dv] = net_force_with(params, state, load, friction);
+            let (area_a, area_b) = (params.area_a(), params.area_b());
+            (
+                force / params.mass,
+                [
+                    area_a / params.mass,
+                    -area_b / params.mass,
+                    dforce_dx / params.mass,
+                    dforce_dv / params.mass,
+                ],
+            )
+        }
+        // The host moves the rod at the acceleration `load`: nothing here acts back on it.
+        RodPort::Motion => (load, [0.0; N_STATES]),
     }
 }
 
