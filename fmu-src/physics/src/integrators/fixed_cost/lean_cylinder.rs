@@ -86,11 +86,11 @@ pub(crate) fn advance(
 }
 
 /// One linearly implicit step of `h` from `y0`, at which the end stop's contact force is
-/// `contact0` ([`contact_force`]; 0 with the motion port). A step whose end-stop contact switches (the
-/// piston reaching a stop's face, where the damper's force jumps in, or the contact force
-/// falling to zero, a kink) or whose chamber pressure crosses a kink of its laws
-/// ([`pressure_switch`]) is cut there, the switch placed by one interpolation along the
-/// step, and the rest taken from a new linearisation (two linearised steps, else one).
+/// `contact0` ([`contact_force`]; 0 with the motion port). A step whose end-stop contact
+/// switches (the piston reaching a stop's face, where the damper's force jumps in, or the
+/// contact force falling to zero, a kink) or whose chamber pressure crosses a kink of its
+/// laws ([`pressure_switch`]) is cut there, the switch placed by one interpolation along
+/// the step, and the rest taken from a new linearisation (two linearised steps, else one).
 fn advance_once(
     params: &CylinderParams,
     (y0, contact0): (&Vec4, f64),
@@ -209,9 +209,10 @@ fn contact_force(params: &CylinderParams, y: &Vec4) -> f64 {
 }
 
 /// Where in a step from `y0` (its contact force `contact0`) to `y1` the end-stop contact
-/// switches, as a fraction of the step in (0, 1): reaching a stop's face (the position interpolated linearly onto it), or
-/// the contact force falling to zero (interpolated linearly from its value at `y0` to its
-/// linear extension at `y1`). `None` where neither happens.
+/// switches, as a fraction of the step in (0, 1): reaching a stop's face (the position
+/// interpolated linearly onto it), or the contact force falling to zero (interpolated
+/// linearly from its value at `y0` to its linear extension at `y1`). `None` where neither
+/// happens.
 fn contact_switch(params: &CylinderParams, (y0, contact0): (&Vec4, f64), y1: &Vec4) -> Option<f64> {
     let half = 0.5 * params.stroke;
     let side = if y0[X] + y1[X] >= 0.0 { 1.0 } else { -1.0 };
