@@ -48,13 +48,15 @@ pub(crate) fn linearise(
     p_supply: f64,
     load: f64,
 ) -> (Vec4, Mat4, Vec4) {
-    let l = linearisation(params, y, x_s, p_supply, load);
+    let l = linearisation(params, y, x_s, p_supply, load, friction(params, y[V]));
     let jac = [l.d_pa, l.d_pb, [0.0, 0.0, 0.0, 1.0], l.d_v];
     (l.rates, jac, [l.d_xs[0], l.d_xs[1], 0.0, 0.0])
 }
 
-/// [`linearise`] in the shape of [`Linearisation`]. Inlined: the fixed-cost step keeps its
-/// rows where they are computed.
+/// [`linearise`] in the shape of [`Linearisation`], with the friction and its slope at the
+/// state's velocity `friction` ([`friction`]) given: a caller computes it where few values
+/// are live across its libm calls (exp, tanh), which save and restore every one. Inlined:
+/// the fixed-cost step keeps its rows where they are computed.
 #[inline(always)]
 pub(crate) fn linearisation(
     params: &CylinderParams,
@@ -62,11 +64,10 @@ pub(crate) fn linearisation(
     x_s: f64,
     p_supply: f64,
     load: f64,
+    friction: (f64, f64),
 ) -> Linearisation {
     let state = CylinderState::from_array(y);
     let chambers = pressure_rows(params, &state, x_s, p_supply);
-    // After the chambers' rows: the friction's libm calls (exp, tanh) find fewer values live.
-    let friction = friction(params, state.v);
     let (acceleration, d_v) = motion_row(params, &state, load, friction);
     Linearisation {
         rates: [chambers.rates[0], chambers.rates[1], state.v, acceleration],

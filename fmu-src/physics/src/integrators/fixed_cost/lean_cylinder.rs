@@ -25,7 +25,9 @@ use crate::components::cylinder::{CylinderParams, CylinderState, Vec4, PA, PB, V
 use crate::components::cylinder_jacobian::{
     linearisation, secant_cavitation, secant_friction, Linearisation,
 };
-use crate::components::cylinder_terms::{at_least, chamber_volumes, endstop_force, relief_flow};
+use crate::components::cylinder_terms::{
+    at_least, chamber_volumes, endstop_force, friction, relief_flow,
+};
 use crate::held_inputs::HeldInputs;
 use crate::params::RodPort;
 
@@ -131,7 +133,10 @@ struct Linearised {
 impl Linearised {
     fn at(params: &CylinderParams, y0: &Vec4, spool: [f64; 2], h: f64, loads: (f64, f64)) -> Self {
         let (p_supply, load) = loads;
-        let mut model = linearisation(params, y0, spool[0], p_supply, load);
+        // The friction before the linearisation, in a frame of its own: nothing else is live
+        // across its libm calls.
+        let friction = friction_at(params, y0[V]);
+        let mut model = linearisation(params, y0, spool[0], p_supply, load, friction);
         secant_friction(params, y0, h, &mut model);
         secant_cavitation(params, y0, h, &mut model);
         secant_relief(params, y0, h, &mut model);
@@ -151,6 +156,12 @@ impl Linearised {
         }
         y1
     }
+}
+
+/// [`friction`] at `v`, not inlined.
+#[inline(never)]
+fn friction_at(params: &CylinderParams, v: f64) -> (f64, f64) {
+    friction(params, v)
 }
 
 /// For a step in which a chamber's pressure rises into its relief valve's law, the valve's
