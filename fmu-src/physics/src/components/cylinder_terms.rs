@@ -26,11 +26,25 @@ pub(crate) fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
 pub(crate) fn chamber_volumes(params: &CylinderParams, x: f64) -> [(f64, f64); 2] {
     let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
     let (volume_a, volume_b) = free_volumes(params, x);
-    let slope = |volume: f64, area: f64| if volume >= min_volume { area } else { 0.0 };
-    [
-        (volume_a.max(min_volume), slope(volume_a, params.area_a())),
-        (volume_b.max(min_volume), slope(volume_b, -params.area_b())),
-    ]
+    let clamped = |volume: f64, area: f64| {
+        if volume >= min_volume {
+            (volume, area)
+        } else {
+            (min_volume, 0.0)
+        }
+    };
+    [clamped(volume_a, params.area_a()), clamped(volume_b, -params.area_b())]
+}
+
+/// `x.max(floor)` for a `floor` that is not NaN (a NaN `x` gives `floor`, as with `max`) in one
+/// comparison, without `max`'s handling of a NaN `floor`.
+#[inline(always)]
+pub(crate) fn at_least(x: f64, floor: f64) -> f64 {
+    if x >= floor {
+        x
+    } else {
+        floor
+    }
 }
 
 /// The metering ports' flows (into A, out of B) at chamber pressures `p_a`, `p_b` for spool
@@ -44,7 +58,7 @@ pub(crate) fn port_flows(
     p_supply: f64,
 ) -> PortFlows {
     let floor = params.p_cavitation;
-    let at_floor = [p_a.max(floor), p_b.max(floor)];
+    let at_floor = [at_least(p_a, floor), at_least(p_b, floor)];
     let mut flows = params.ports.flows(x_s, at_floor, p_supply, params.p_tank);
     flows.dqa_dpa *= if p_a >= floor { 1.0 } else { 0.0 };
     flows.dqb_dpb *= if p_b >= floor { 1.0 } else { 0.0 };
@@ -89,20 +103,21 @@ pub(crate) fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64
 pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
     let stribeck = (v / params.v_stribeck).powi(2);
     let excess = params.f_static - params.f_coulomb;
+    let a = v / params.v_friction_smooth;
     // Well past the Stribeck speed the decayed part is below half an ulp of F_coulomb
     // (F_coulomb * 2^-54 bounds that from below), so the sum is F_coulomb exactly. The
     // decay is then needed for the slope alone: computed in each branch, so that a caller
-    // that drops the slope does not compute it there.
+    // that drops the slope does not compute it there, and only where the slope can see it.
     let (dry, decay) = if stribeck > STRIBECK_TAIL.0
         && excess.abs() * STRIBECK_TAIL.1 <= params.f_coulomb * (0.25 * f64::EPSILON)
     {
-        (params.f_coulomb, stribeck_decay(stribeck))
+        (params.f_coulomb, slope_decay(params, stribeck, a, excess))
     } else {
         let decay = stribeck_decay(stribeck);
         (params.f_coulomb + excess * decay, decay)
     };
     let ddry_dv = excess * decay * (-2.0 * v / (params.v_stribeck * params.v_stribeck));
-    let th = smooth_sign(v / params.v_friction_smooth);
+    let th = smooth_sign(a);
     let force = dry * th + params.b_viscous * v;
     let slope = ddry_dv * th + dry * (1.0 - th * th) / params.v_friction_smooth + params.b_viscous;
     (force, slope)
@@ -111,6 +126,28 @@ pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
 /// `(s, b)`: for `stribeck > s` the computed `exp(-stribeck)` is below `b` (`e^-50 =
 /// 1.93e-22`, with room for libm's rounding).
 const STRIBECK_TAIL: (f64, f64) = (50.0, 2.0e-22);
+
+/// For `stribeck > STRIBECK_TAIL.0` the decayed part's slope `(F_s - F_c) d/dv
+/// exp(-(v/v_s)^2)` is below `|F_s - F_c| / v_s` times this: `2 u exp(-u^2)`, `u = |v|/v_s`,
+/// falls beyond `u^2 = 50`, where it is `2 sqrt(50) e^-50 = 2.73e-21` (with room for rounding).
+const STRIBECK_SLOPE_TAIL: f64 = 3.0e-21;
+
+/// The Stribeck decay past its tail ([`STRIBECK_TAIL`]), where only the friction's slope
+/// reads it, at `stribeck = (v/v_s)^2` and `a = v/v_smooth`: 0 where that changes none of
+/// the slope's bits (the smooth sign saturated, so the slope is the decayed part's plus
+/// the viscous one, and the decayed part below a quarter ulp of the viscous one: the sum
+/// rounds to the viscous slope either way), else [`stribeck_decay`].
+#[inline(always)]
+fn slope_decay(params: &CylinderParams, stribeck: f64, a: f64, excess: f64) -> f64 {
+    let lost = a.abs() >= TANH_SATURATED
+        && excess.abs() * STRIBECK_SLOPE_TAIL / params.v_stribeck
+            <= params.b_viscous.abs() * (0.25 * f64::EPSILON);
+    if lost {
+        0.0
+    } else {
+        stribeck_decay(stribeck)
+    }
+}
 
 /// `exp(-stribeck)` for `stribeck >= 0`. Beyond [`DECAY_UNDERFLOW`] that is exactly 0 in
 /// f64; returned without the call (a moving piston is there: libm's underflow path is slow).
@@ -127,10 +164,14 @@ pub(crate) fn stribeck_decay(stribeck: f64) -> f64 {
 /// subnormal); a margin above that.
 const DECAY_UNDERFLOW: f64 = 750.0;
 
-/// `tanh(a)`, the friction's smooth sign. For `|a| >= 22` tanh is `+-1` exactly in f64 (the
-/// cut-off of glibc's and musl's own shortcut); returned without the call.
+/// From here on `tanh` is `+-1` exactly in f64 (the cut-off of glibc's and musl's own
+/// shortcut).
+const TANH_SATURATED: f64 = 22.0;
+
+/// `tanh(a)`, the friction's smooth sign. For `|a| >=` [`TANH_SATURATED`] returned without
+/// the call.
 pub(crate) fn smooth_sign(a: f64) -> f64 {
-    if a.abs() >= 22.0 {
+    if a.abs() >= TANH_SATURATED {
         1.0_f64.copysign(a)
     } else {
         a.tanh()
@@ -164,7 +205,17 @@ pub(crate) fn endstop_force(params: &CylinderParams, x: f64, v: f64) -> (f64, f6
 /// and its slopes `(dF/dx, dF/dv)` (the pressures' are the areas).
 #[inline(always)]
 pub(crate) fn net_force(params: &CylinderParams, state: &CylinderState, f_ext: f64) -> [f64; 3] {
-    let (friction, dfriction_dv) = friction(params, state.v);
+    net_force_with(params, state, f_ext, friction(params, state.v))
+}
+
+/// [`net_force`] with the friction and its slope at the state's velocity already known.
+#[inline(always)]
+pub(crate) fn net_force_with(
+    params: &CylinderParams,
+    state: &CylinderState,
+    f_ext: f64,
+    (friction, dfriction_dv): (f64, f64),
+) -> [f64; 3] {
     let (contact, dcontact_dx, dcontact_dv) = endstop_force(params, state.x, state.v);
     let force =
         state.p_a * params.area_a() - state.p_b * params.area_b() - friction + f_ext + contact;

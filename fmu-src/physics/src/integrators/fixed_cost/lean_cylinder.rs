@@ -1,6 +1,6 @@
 //! The fixed-cost method's step of the cylinder: one linearly implicit step per internal
 //! step, whatever happens in it. The model is linearised once at the step's start
-//! ([`linearise`]: the rates, the analytic Jacobian `J` and the spool's sensitivity), and
+//! ([`linearisation`]: the rates, the analytic Jacobian `J` and the spool's sensitivity), and
 //!
 //! ```text
 //! (I - gamma h J) k = h (f(y0) + gamma h df/dx_s x_s'),    y1 = y0 + k
@@ -21,9 +21,13 @@
 //! stop's contact ([`advance`]).
 
 use crate::actuator::Actuator;
-use crate::components::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, PA, PB, V, X};
-use crate::components::cylinder_jacobian::{linearise, secant_cavitation, secant_friction};
-use crate::components::cylinder_terms::{chamber_volumes, endstop_force, relief_flow};
+use crate::components::cylinder::{CylinderParams, CylinderState, Vec4, PA, PB, V, X};
+use crate::components::cylinder_jacobian::{
+    linearisation, secant_cavitation, secant_friction, Linearisation,
+};
+use crate::components::cylinder_terms::{
+    at_least, chamber_volumes, endstop_force, friction, relief_flow,
+};
 use crate::held_inputs::HeldInputs;
 use crate::params::RodPort;
 
@@ -64,26 +68,34 @@ pub(crate) fn advance(
     h: f64,
     loads: (f64, f64),
 ) -> (Vec4, u64) {
-    if params.port == RodPort::Force && contact_force(params, y0) != 0.0 {
+    let contact = match params.port {
+        RodPort::Force => contact_force(params, y0),
+        RodPort::Motion => 0.0,
+    };
+    if contact != 0.0 {
         // In a stop's contact (1e8 N/m against the load: h w = 0.45 at 1e-4 s) in halves,
         // held there too: in one step the 2 Hz squares' p_B was 1.6e-2 of its range off
         // (4.8e-3 in halves), the pressure changing while the valve reverses.
         let middle = 0.5 * (spool[0] + spool[1]);
-        let (y_half, first) = advance_once(params, y0, [spool[0], middle], 0.5 * h, loads);
-        let (y1, second) = advance_once(params, &y_half, [middle, spool[1]], 0.5 * h, loads);
+        let (y_half, first) =
+            advance_once(params, (y0, contact), [spool[0], middle], 0.5 * h, loads);
+        let contact_half = contact_force(params, &y_half);
+        let (y1, second) =
+            advance_once(params, (&y_half, contact_half), [middle, spool[1]], 0.5 * h, loads);
         return (y1, first + second);
     }
-    advance_once(params, y0, spool, h, loads)
+    advance_once(params, (y0, contact), spool, h, loads)
 }
 
-/// One linearly implicit step of `h` from `y0`. A step whose end-stop contact switches (the
-/// piston reaching a stop's face, where the damper's force jumps in, or the contact force
-/// falling to zero, a kink) or whose chamber pressure crosses a kink of its laws
-/// ([`pressure_switch`]) is cut there, the switch placed by one interpolation along the
-/// step, and the rest taken from a new linearisation (two linearised steps, else one).
+/// One linearly implicit step of `h` from `y0`, at which the end stop's contact force is
+/// `contact0` ([`contact_force`]; 0 with the motion port). A step whose end-stop contact
+/// switches (the piston reaching a stop's face, where the damper's force jumps in, or the
+/// contact force falling to zero, a kink) or whose chamber pressure crosses a kink of its
+/// laws ([`pressure_switch`]) is cut there, the switch placed by one interpolation along
+/// the step, and the rest taken from a new linearisation (two linearised steps, else one).
 fn advance_once(
     params: &CylinderParams,
-    y0: &Vec4,
+    (y0, contact0): (&Vec4, f64),
     spool: [f64; 2],
     h: f64,
     loads: (f64, f64),
@@ -93,13 +105,13 @@ fn advance_once(
     if params.port == RodPort::Motion {
         return (y1, 1);
     }
-    let contact = contact_switch(params, y0, &y1);
+    let contact = contact_switch(params, (y0, contact0), &y1);
     let first_switch = contact.into_iter().chain(pressure_switch(params, y0, &y1)).reduce(f64::min);
     let Some(fraction) = first_switch else {
         return (y1, 1);
     };
     let mut y_cut = linear.step(params, y0, fraction * h);
-    if contact == Some(fraction) && contact_force(params, y0) == 0.0 {
+    if contact == Some(fraction) && contact0 == 0.0 {
         // Onto the face: a hair inside, so that the damper's force and both slopes act.
         let half = 0.5 * params.stroke;
         y_cut[X] = y_cut[X].signum() * half * (1.0 + 1e-12);
@@ -113,47 +125,56 @@ fn advance_once(
 /// The model linearised at a step's start: rates, Jacobian (with the secants a fixed step
 /// needs) and the rates' drift with the spool's motion.
 struct Linearised {
-    f: Vec4,
-    jac: Mat4,
-    /// `df/dx_s x_s'` over the step.
-    drift: Vec4,
+    model: Linearisation,
+    /// `[d p_A'/dt, d p_B'/dt] = df/dx_s x_s'` over the step.
+    drift: [f64; 2],
 }
 
 impl Linearised {
     fn at(params: &CylinderParams, y0: &Vec4, spool: [f64; 2], h: f64, loads: (f64, f64)) -> Self {
         let (p_supply, load) = loads;
-        let (f, mut jac, f_xs) = linearise(params, y0, spool[0], p_supply, load);
-        secant_friction(params, y0, f[V], h, &mut jac);
-        secant_cavitation(params, y0, &f, h, &mut jac);
-        secant_relief(params, y0, &f, h, &mut jac);
+        // The friction before the linearisation, in a frame of its own: nothing else is live
+        // across its libm calls.
+        let friction = friction_at(params, y0[V]);
+        let mut model = linearisation(params, y0, spool[0], p_supply, load, friction);
+        secant_friction(params, y0, h, &mut model);
+        secant_cavitation(params, y0, h, &mut model);
+        secant_relief(params, y0, h, &mut model);
         let spool_rate = (spool[1] - spool[0]) / h;
-        Linearised { f, jac, drift: f_xs.map(|d| d * spool_rate) }
+        Linearised { drift: model.d_xs.map(|d| d * spool_rate), model }
     }
 
     /// One linearly implicit step of `h` from `y0`, the pressures held at the floor.
     fn step(&self, params: &CylinderParams, y0: &Vec4, h: f64) -> Vec4 {
         let s = GAMMA * h;
-        let rhs = [0, 1, 2, 3].map(|k| h * (self.f[k] + s * self.drift[k]));
-        let k = solve_shifted(&self.jac, s, &rhs);
+        let (f, drift) = (&self.model.rates, &self.drift);
+        let rhs = [h * (f[PA] + s * drift[0]), h * (f[PB] + s * drift[1]), h * f[X], h * f[V]];
+        let k = solve_shifted(&self.model, s, &rhs);
         let mut y1 = [y0[PA] + k[PA], y0[PB] + k[PB], y0[X] + k[X], y0[V] + k[V]];
         for p in [PA, PB] {
-            y1[p] = y1[p].max(params.p_cavitation);
+            y1[p] = at_least(y1[p], params.p_cavitation);
         }
         y1
     }
 }
 
+/// [`friction`] at `v`, not inlined.
+#[inline(never)]
+fn friction_at(params: &CylinderParams, v: f64) -> (f64, f64) {
+    friction(params, v)
+}
+
 /// For a step in which a chamber's pressure rises into its relief valve's law, the valve's
-/// slope in `jac` replaced by its secant from `p` to the explicit prediction `p + h p'`
+/// slope in `l` replaced by its secant from `p` to the explicit prediction `p + h p'`
 /// where that is the steeper: the law starts with zero slope at the cracking pressure, so
 /// a step from there saw no valve and ran 9 % past the override (100 Hz 10 mA squares).
-fn secant_relief(params: &CylinderParams, y: &Vec4, rates: &Vec4, h: f64, jac: &mut Mat4) {
+fn secant_relief(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisation) {
     if params.relief_p_crack == 0.0 {
         return;
     }
     let crack = params.p_tank + params.relief_p_crack;
     for k in [PA, PB] {
-        let (p0, rate) = (y[k], rates[k]);
+        let (p0, rate) = (y[k], l.rates[k]);
         let p1 = p0 + h * rate;
         // Below the cracking pressure at the prediction the valve stays shut: no slope.
         if rate <= 0.0 || p1 <= crack {
@@ -163,7 +184,7 @@ fn secant_relief(params: &CylinderParams, y: &Vec4, rates: &Vec4, h: f64, jac: &
         let secant = (q1 - q0) / (p1 - p0);
         if secant > tangent {
             let volume = chamber_volumes(params, y[X])[k].0;
-            jac[k][k] -= params.beta / volume * (secant - tangent);
+            *l.diagonal_mut(k) -= params.beta / volume * (secant - tangent);
         }
     }
 }
@@ -198,15 +219,16 @@ fn contact_force(params: &CylinderParams, y: &Vec4) -> f64 {
     endstop_force(params, y[X], y[V]).0.abs()
 }
 
-/// Where in a step from `y0` to `y1` the end-stop contact switches, as a fraction of the
-/// step in (0, 1): reaching a stop's face (the position interpolated linearly onto it), or
-/// the contact force falling to zero (interpolated linearly from its value at `y0` to its
-/// linear extension at `y1`). `None` where neither happens.
-fn contact_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64> {
+/// Where in a step from `y0` (its contact force `contact0`) to `y1` the end-stop contact
+/// switches, as a fraction of the step in (0, 1): reaching a stop's face (the position
+/// interpolated linearly onto it), or the contact force falling to zero (interpolated
+/// linearly from its value at `y0` to its linear extension at `y1`). `None` where neither
+/// happens.
+fn contact_switch(params: &CylinderParams, (y0, contact0): (&Vec4, f64), y1: &Vec4) -> Option<f64> {
     let half = 0.5 * params.stroke;
     let side = if y0[X] + y1[X] >= 0.0 { 1.0 } else { -1.0 };
     let depth = |y: &Vec4| side * y[X] - half;
-    let fraction = if contact_force(params, y0) == 0.0 {
+    let fraction = if contact0 == 0.0 {
         let (d0, d1) = (depth(y0), depth(y1));
         (d0 <= 0.0 && d1 > 0.0).then(|| -d0 / (d1 - d0))?
     } else {
@@ -217,32 +239,36 @@ fn contact_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64> 
     (fraction > 0.0 && fraction < 1.0).then_some(fraction)
 }
 
-/// Solves `(I - s J) k = r` for the cylinder's Jacobian, whose position row is `x' = v`
-/// (`J[X] = e_V`): `k_x = r_x + s k_v` folds it into the other three rows, which Cramer's
-/// rule solves (three determinants of 3x3 minors over one division).
-fn solve_shifted(jac: &Mat4, s: f64, r: &Vec4) -> Vec4 {
+/// Solves `(I - s J) k = r` for the cylinder's Jacobian `J` (`model`'s rows; its position
+/// row is `x' = v`, `J[X] = e_V`): `k_x = r_x + s k_v` folds it into the other three rows,
+/// which elimination in the order `p_A`, `p_B`, `v` solves. No pivoting: the pressures'
+/// diagonal entries `1 - s dp'/dp` are at least 1 (each term of a chamber's pressure rate
+/// falls as its own pressure rises: the orifices, leaks and relief valves pass less in or
+/// more out, the fade closes, and the secants that replace their slopes are steeper still),
+/// and the leak's coupling between the chambers is weaker than either diagonal, so that
+/// the second pivot stays above 1 as well.
+fn solve_shifted(model: &Linearisation, s: f64, r: &Vec4) -> Vec4 {
     // Rows PA, PB, V of (I - s J) with the X column folded into the V column.
-    let row = |i: usize| {
-        let j = &jac[i];
+    let row = |i: usize, j: &Vec4| {
         let diagonal = |c: usize| if c == i { 1.0 } else { 0.0 };
         let m = [PA, PB, V].map(|c| diagonal(c) - s * j[c]);
         let folded_v = m[2] - s * s * j[X];
         ([m[0], m[1], folded_v], r[i] + s * j[X] * r[X])
     };
-    let (a0, b0) = row(PA);
-    let (a1, b1) = row(PB);
-    let (a2, b2) = row(V);
-    let det3 = |c0: [f64; 3], c1: [f64; 3], c2: [f64; 3]| {
-        c0[0] * (c1[1] * c2[2] - c1[2] * c2[1]) - c1[0] * (c0[1] * c2[2] - c0[2] * c2[1])
-            + c2[0] * (c0[1] * c1[2] - c0[2] * c1[1])
+    let (a0, b0) = row(PA, &model.d_pa);
+    let (a1, b1) = row(PB, &model.d_pb);
+    let (a2, b2) = row(V, &model.d_v);
+    // k_pa out of the rows PB and V, then k_pb out of the row V.
+    let without_pa = |a: [f64; 3], b: f64| {
+        let l = a[0] / a0[0];
+        ([a[1] - l * a0[1], a[2] - l * a0[2]], b - l * b0)
     };
-    // Columns of the 3x3 and of the right-hand side.
-    let col = |k: usize| [a0[k], a1[k], a2[k]];
-    let b = [b0, b1, b2];
-    let inv = 1.0 / det3(col(0), col(1), col(2));
-    let k_pa = det3(b, col(1), col(2)) * inv;
-    let k_pb = det3(col(0), b, col(2)) * inv;
-    let k_v = det3(col(0), col(1), b) * inv;
+    let (c1, d1) = without_pa(a1, b1);
+    let (c2, d2) = without_pa(a2, b2);
+    let l = c2[0] / c1[0];
+    let k_v = (d2 - l * d1) / (c2[1] - l * c1[1]);
+    let k_pb = (d1 - c1[1] * k_v) / c1[0];
+    let k_pa = (b0 - a0[1] * k_pb - a0[2] * k_v) / a0[0];
     [k_pa, k_pb, r[X] + s * k_v, k_v]
 }
 
@@ -253,15 +279,18 @@ mod tests {
     /// The folded 3x3 solves the full 4x4 system.
     #[test]
     fn the_folded_solve_solves_the_whole_system() {
-        let jac: Mat4 = [
-            [-3.0e4, 2.0e2, 5.0e6, -1.0e8],
-            [1.5e2, -2.5e4, -4.0e6, 6.0e7],
-            [0.0, 0.0, 0.0, 1.0],
-            [4.0e-5, -2.5e-5, -1.0e3, -40.0],
-        ];
+        let model = Linearisation {
+            rates: [0.0; 4],
+            d_pa: [-3.0e4, 2.0e2, 5.0e6, -1.0e8],
+            d_pb: [1.5e2, -2.5e4, -4.0e6, 6.0e7],
+            d_v: [4.0e-5, -2.5e-5, -1.0e3, -40.0],
+            d_xs: [0.0; 2],
+            friction: (0.0, 0.0),
+        };
+        let jac = [model.d_pa, model.d_pb, [0.0, 0.0, 0.0, 1.0], model.d_v];
         let r = [1.0e3, -2.0e3, 1.0e-6, 3.0e-3];
         let s = 5.5e-5;
-        let k = solve_shifted(&jac, s, &r);
+        let k = solve_shifted(&model, s, &r);
         for i in 0..4 {
             let applied: f64 =
                 (0..4).map(|c| (if c == i { 1.0 } else { 0.0 } - s * jac[i][c]) * k[c]).sum();
