@@ -1,9 +1,10 @@
 """N hydraulic quadrupeds (cosim-examples/mjcf/quadruped.xml, twelve ehsv.actuator plugin
 actuators each) through ``mujoco.rollout``, in MuJoCo's C threads, no Python in the loop.
 
-Each robot stands and squats with its own command (trunk height 0.55 m, down by
-2 x 15 mm and back at 1 + 0.25 k Hz for robot k; the joint commands through the legs'
-inverse kinematics and levers as x_ref of each rod), open loop from one initial state.
+Each robot stands and squats with its own command (from the keyframe `stand`'s trunk
+height down by 2 x 15 mm and back at 1 + 0.25 k Hz for robot k; the joint commands through
+the legs' inverse kinematics and levers, read from the model, as x_ref of each rod), open
+loop from one initial state.
 Prints robot-seconds per wall-second with 1 thread and with one per core, then the same
 for the quadruped with MuJoCo's own ``position`` actuators on the same tendons (nearly
 free), and their ratio; the same per CPU-second (the process's CPU time over all threads:
