@@ -1,15 +1,18 @@
 """A HyQ-like hydraulic quadruped in MuJoCo: 12 joints, each driven by an EhsvActuator cylinder.
 
-A 50 kg trunk on a free joint, four legs (hip abduction/adduction HAA, hip flexion HFE,
-knee KFE; thigh and shank 0.35 m; front knees pointing back, hind knees forward, as HyQ
-stands), 68 kg in all. Each joint is driven by one cylinder (bore 16 mm, rod 10 mm,
-stroke 80 mm, supply 16 MPa, relief 21 MPa) through a 45 mm lever (ehsv.robot.Lever),
-the FMU's position loop on each rod. The co-simulation steps at 1e-4 s as MuJoCo's
-examples write a loop: mj_step1 -> the 12 rods' x, v through the levers -> 12 x (setReal,
-doStep, getReal) -> joint torques F_rod * dx/dq into qfrc_applied -> mj_step2; the joint
-commands at 1 kHz.
+The robot is cosim-examples/mjcf/quadruped.xml: a trunk on a free joint, four legs (hip
+abduction/adduction HAA, hip flexion HFE, knee KFE; front knees pointing back, hind knees
+forward, as HyQ stands), each joint driven by one cylinder through a lever (the spatial
+tendon between its pivots), the ehsv.actuator plugin's position loop on each rod.
+Everything the controller needs of the robot is read from the loaded model
+(``Quadruped.of``): the levers, each leg's hip position, link lengths, foot and knee
+direction, the trunk's height in the file (the crouch it starts from) and in the "stand"
+keyframe. The co-simulation steps at MuJoCo's timestep (1e-4 s in the file): mj_step1 ->
+the 12 rods' commands x_ref -> mj_step2 (the plugin steps the actuators inside it; with
+--actuator fmu the 12 FMUs step between, on the same tendons); the joint commands at
+1 kHz.
 
-The run: from a crouch (hips at 0.35 m) stand up to 0.55 m, hold the stance, trot in
+The run: from the crouch stand up to the stance, hold it, trot in
 place for 5 s (diagonal pairs LF+RH and RF+LH lift in alternation at 1.75 Hz, 5 cm foot
 lift, 45 % swing), with a proportional attitude feedback that lengthens the legs on the low side,
 then stand. Prints the base height and attitude, the rod force peaks, the real-time
@@ -34,136 +37,73 @@ from pathlib import Path
 import numpy as np
 
 from ehsv import cli, mjplugin, robot
-from ehsv.robot import Hydraulics, Lever, LeverSet, smooth
+from ehsv.robot import Hydraulics, LeverSet, smooth
 
-L1 = L2 = 0.35
-FOOT_R = 0.025
-M_TRUNK, M_HIP, M_THIGH, M_SHANK = 50.0, 1.5, 2.0, 1.0
-HIP_X, HIP_Y = 0.37, 0.19
-H_CROUCH, H_STAND = 0.35, 0.55
-HYD = Hydraulics(p_supply=16e6, p_crack=21e6)
 LEGS = ("LF", "RF", "LH", "RH")
 #: trot pairs: LF + RH swing together, then RF + LH
 PAIR = {"LF": 0, "RH": 0, "RF": 1, "LH": 1}
-
-
-@dataclass(frozen=True)
-class LegGeometry:
-    name: str
-    x: float
-    y: float
-    bend: int  # +1: knee forwards (hind legs), -1: backwards (front legs)
-
-    @property
-    def levers(self) -> tuple[Lever, Lever, Lever]:
-        side = 1 if self.y > 0 else -1
-        haa = Lever(d=0.15, r=0.045, q_mid=0.0, sign=+1, base_angle=side * math.pi / 2)
-        # the HFE cylinder lies along the trunk towards its middle; the knee's along the thigh
-        b = self.bend
-        hfe = Lever(d=0.20, r=0.045, q_mid=-b * math.radians(45), sign=b, base_angle=b * math.pi / 2)
-        kfe = Lever(d=0.25, r=0.045, q_mid=self.bend * math.radians(95), sign=-self.bend, base_angle=0.0)
-        return haa, hfe, kfe
-
-
-GEOMETRY = tuple(
-    LegGeometry(
-        n, HIP_X if n[1] == "F" else -HIP_X, HIP_Y if n[0] == "L" else -HIP_Y, -1 if n[1] == "F" else 1
-    )
-    for n in LEGS
-)
-JOINTS = tuple(f"{g.name}_{j}" for g in GEOMETRY for j in ("haa", "hfe", "kfe"))
-LEVERS = tuple(lv for g in GEOMETRY for lv in g.levers)
+JOINTS = tuple(f"{leg}_{j}" for leg in LEGS for j in ("haa", "hfe", "kfe"))
 MJCF = mjplugin.MJCF_DIR / "quadruped.xml"
 
 
-def _leg_xml(g: LegGeometry) -> tuple[str, str]:
-    """The leg's bodies and the trunk-side site of its HAA cylinder."""
-    haa, hfe, kfe = g.levers
-    n = g.name
-    hip = (g.x, g.y, 0.0)
-    out = 1 if g.y > 0 else -1  # the cylinders beside the links, outwards
-    haa_base, haa_end = robot.cylinder_sites(f"{n}_haa_cyl", haa, "x", joint_pos=hip, side=-0.06 * g.bend)
-    hfe_base, hfe_end = robot.cylinder_sites(f"{n}_hfe_cyl", hfe, "y", side=0.05 * out)
-    kfe_base, kfe_end = robot.cylinder_sites(
-        f"{n}_kfe_cyl", kfe, "y", joint_pos=(0, 0, -L1), side=0.045 * out
-    )
-    knee_range = "0.05 2.6" if g.bend > 0 else "-2.6 -0.05"
-    body = f"""
-      <body name="{n}_hip" pos="{robot.fmt(hip)}">
-        <joint name="{n}_haa" type="hinge" axis="1 0 0" range="-0.9 0.9"/>
-        <geom type="capsule" fromto="-0.06 0 0 0.06 0 0" size="0.045" mass="{M_HIP}" rgba=".3 .32 .36 1"/>
-        {haa_end}
-        {hfe_base}
-        <body name="{n}_thigh">
-          <joint name="{n}_hfe" type="hinge" axis="0 1 0" range="-2.0 2.0"/>
-          <geom class="link" type="capsule" fromto="0 0 0 0 0 -{L1}" size="0.03" mass="{M_THIGH}"/>
-          {hfe_end}
-          {kfe_base}
-          <body name="{n}_shank" pos="0 0 -{L1}">
-            <joint name="{n}_kfe" type="hinge" axis="0 1 0" range="{knee_range}"/>
-            <geom class="link" type="capsule" fromto="0 0 0 0 0 -{L2}" size="0.02" mass="{M_SHANK - 0.1}"/>
-            {kfe_end}
-            <geom name="{n}_foot" type="sphere" pos="0 0 -{L2}" size="{FOOT_R}" mass="0.1" contype="1"
-                  conaffinity="1" friction="1 0.005 0.0001" rgba=".15 .15 .15 1"/>
-            <site name="{n}_foot" pos="0 0 -{L2}" size="0.005"/>
-          </body>
-        </body>
-      </body>"""
-    return body, haa_base
+@dataclass(frozen=True)
+class Quadruped:
+    """What the controller and the reports need of the robot, read from the model."""
 
+    legs: tuple[robot.LegKinematics, ...]  # in LEGS' order
+    levers: LeverSet  # joint angles -> rod positions, in JOINTS' order
+    h_crouch: float  # the trunk's height in the file: the pose a run starts from
+    h_stand: float  # the "stand" keyframe's trunk height
+    mass: float
 
-def mjcf() -> str:
-    legs = [_leg_xml(g) for g in GEOMETRY]
-    tendons = "\n    ".join(robot.cylinder_tendon(f"{j}_cyl") for j in JOINTS)
-    return f"""
-{robot.scene_head("hydraulic_quadruped", texrepeat=10, light="1 -2 3", light_dir="-0.3 0.6 -1", floor=4)}
-    <body name="trunk" pos="0 0 {H_CROUCH}">
-      <freejoint name="base"/>
-      <geom name="trunk" type="box" size="0.44 0.13 0.07" mass="{M_TRUNK}" contype="1" conaffinity="1"
-            rgba=".3 .32 .36 1"/>
-      {"".join(base for _, base in legs)}
-      {"".join(body for body, _ in legs)}
-    </body>
-  </worldbody>
-  <tendon>
-    {tendons}
-  </tendon>
-{mjplugin.actuator_block(JOINTS, LEVERS, HYD)}
-{stand_key()}
-</mujoco>"""
+    @staticmethod
+    def of(model) -> Quadruped:
+        trunk = model.body("trunk")
+        z = model.joint("base").qposadr[0] + 2  # the free joint's position z
+        return Quadruped(
+            legs=tuple(
+                robot.LegKinematics.of(model, "trunk", f"{n}_hfe", f"{n}_kfe", f"{n}_foot") for n in LEGS
+            ),
+            levers=robot.lever_set(model, JOINTS, mjplugin.length_mid(MJCF)),
+            h_crouch=float(model.qpos0[z]),
+            h_stand=float(model.key("stand").qpos[z]),
+            mass=float(model.body_subtreemass[trunk.id]),
+        )
 
-
-def stand_key() -> str:
-    """The keyframe "stand": the trunk level at H_STAND, every foot under its hip, the rods'
-    commands holding it (open it in the viewer: Simulation > Key > Load)."""
-    q = np.zeros(len(JOINTS))
-    for i, g in enumerate(GEOMETRY):
-        q[3 * i + 1 : 3 * i + 3] = robot.leg_ik(H_STAND - FOOT_R, 0.0, L1, L2, g.bend)
-    x_ref = LeverSet(LEVERS).rod(q)[0]
-    return mjplugin.keyframe("stand", (0.0, 0.0, H_STAND, 1.0, 0.0, 0.0, 0.0, *q), x_ref)
+    def stance(self, heights) -> np.ndarray:
+        """Joint angles (JOINTS' order) with every foot under its hip, HAA at 0, leg i at
+        trunk height ``heights[i]`` (one height for all: a level stance)."""
+        q = np.zeros(len(JOINTS))
+        for i, (leg, h) in enumerate(zip(self.legs, np.broadcast_to(heights, len(self.legs)), strict=True)):
+            q[3 * i + 1 : 3 * i + 3] = leg.angles(float(h))
+        return q
 
 
 @dataclass(frozen=True)
 class Plan:
     t_up: tuple[float, float]
     trot: tuple[float, float] | None
+    h_crouch: float  # the heights it starts from and stands at (the model's: Quadruped)
+    h_stand: float
     f_trot: float = 1.75
     lift: float = 0.05
     swing: float = 0.45  # fraction of the period a foot is in the air
     k_att: float = 1.0  # attitude feedback: leg length per (rad x m from the centre)
 
     @staticmethod
-    def full(duration: float) -> Plan:
+    def full(duration: float, quad: Quadruped) -> Plan:
         # whole cycles (both pairs' feet down at the end), 5 s or what the duration leaves
         cycles = math.floor(min(5.0, duration - 3.0) * Plan.f_trot + 0.5)
-        return Plan(t_up=(0.2, 1.2), trot=(2.5, 2.5 + cycles / Plan.f_trot) if cycles > 0 else None)
+        trot = (2.5, 2.5 + cycles / Plan.f_trot) if cycles > 0 else None
+        return Plan(t_up=(0.2, 1.2), trot=trot, h_crouch=quad.h_crouch, h_stand=quad.h_stand)
 
     @staticmethod
-    def short() -> Plan:
-        return Plan(t_up=(0.0, 0.0), trot=None)
+    def short(quad: Quadruped) -> Plan:
+        """Standing from the start."""
+        return Plan(t_up=(0.0, 0.0), trot=None, h_crouch=quad.h_crouch, h_stand=quad.h_stand)
 
     def height(self, t: float) -> float:
-        return smooth(t, *self.t_up, H_CROUCH, H_STAND)
+        return smooth(t, *self.t_up, self.h_crouch, self.h_stand)
 
     def foot_lift(self, t: float, pair: int) -> float:
         if self.trot is None or not (self.trot[0] <= t < self.trot[1]):
@@ -188,21 +128,19 @@ class TrotController:
     the low side pushes the trunk level. (A derivative term on the body rates made the
     legs chatter: the rates carry the hydraulic resonances; the trot needs none.)"""
 
-    def __init__(self, plan: Plan):
-        self.plan = plan
-        self.q = np.zeros(len(JOINTS))
-        self.h = H_CROUCH
+    def __init__(self, plan: Plan, quad: Quadruped):
+        self.plan, self.quad = plan, quad
+        self.h = plan.h_crouch
 
     def __call__(self, t, data) -> np.ndarray:
         p = self.plan
         roll, pitch = attitude(data.qpos[3:7])
         self.h = p.height(t)
-        for i, g in enumerate(GEOMETRY):
-            tilt = p.k_att * (pitch * g.x - roll * g.y)
-            depth = self.h - FOOT_R - p.foot_lift(t, PAIR[g.name]) + tilt
-            qh, qk = robot.leg_ik(depth, 0.0, L1, L2, g.bend)
-            self.q[3 * i : 3 * i + 3] = (0.0, qh, qk)
-        return self.q
+        heights = [
+            self.h - p.foot_lift(t, PAIR[name]) + p.k_att * (pitch * leg.hip[0] - roll * leg.hip[1])
+            for name, leg in zip(LEGS, self.quad.legs, strict=True)
+        ]
+        return self.quad.stance(heights)
 
 
 @dataclass
@@ -212,6 +150,7 @@ class QuadRun:
     rec: dict
     timing: robot.Timing
     plan: Plan
+    quad: Quadruped
     t_end: float
     hyd: Hydraulics
     fell: bool
@@ -272,18 +211,20 @@ def run(
         robot.gl_backend()
     import mujoco
 
-    plan = Plan.short() if short else Plan.full(duration)
-    t_end = 0.4 if short else duration
     config = {"solver.method": method}
     if substep is not None:
         config["substep"] = repr(substep)
     model = mjplugin.load_model(MJCF, kind, timestep, config)
     data = mujoco.MjData(model)
-    ctrl = initial_pose(model, data, plan, short)
-    bank, line = None, f"actuators: {len(JOINTS)} x ehsv.actuator MuJoCo plugin (solver.method = {method})"
+    quad = Quadruped.of(model)
+    hyd = mjplugin.hydraulics(MJCF)
+    plan = Plan.short(quad) if short else Plan.full(duration, quad)
+    t_end = 0.4 if short else duration
+    ctrl = initial_pose(model, data, plan, quad)
+    n = len(JOINTS)
+    bank, line = None, f"actuators: {n} x ehsv.actuator MuJoCo plugin (solver.method = {method})"
     if kind == "fmu":
-        zero = np.zeros(len(JOINTS))
-        bank, line = robot.make_bank("fmu", len(JOINTS), HYD, zero, zero, version, method)
+        bank, line = robot.make_bank("fmu", n, hyd, np.zeros(n), np.zeros(n), version, method)
 
     def probe(d):
         roll, pitch = attitude(d.qpos[3:7])
@@ -292,8 +233,7 @@ def run(
     def fallen(d):
         return d.qpos[2] < 0.2 or abs(d.qpos[4]) > 0.5 or abs(d.qpos[5]) > 0.5
 
-    levers = LeverSet(LEVERS)
-    sim = mjplugin.MjcfCosim(model, data, JOINTS, levers, ctrl, mjplugin.length_mid(MJCF), bank)
+    sim = mjplugin.MjcfCosim(model, data, JOINTS, quad.levers, ctrl, bank)
     try:
         every = max(1, round(1e-3 / model.opt.timestep))
         sim.run(t_end, record_every=every, cmd_every=every, probe=probe, stop=fallen)
@@ -302,19 +242,19 @@ def run(
             bank.close()
     rec = sim.rec.arrays()
     fell = data.time < t_end - 1e-3
-    r = QuadRun(sim.kind, line, rec, sim.timing, plan, float(data.time), HYD, fell)
+    r = QuadRun(sim.kind, line, rec, sim.timing, plan, quad, float(data.time), hyd, fell)
     if render:
         render_frames(model, r)
     return r
 
 
-def initial_pose(model, data, plan: Plan, short: bool) -> TrotController:
-    """Puts the robot in its first pose (crouch, or stance for the short run): the
-    controller's joint commands at t = 0; returns the controller."""
+def initial_pose(model, data, plan: Plan, quad: Quadruped) -> TrotController:
+    """Puts the robot in the plan's first pose (its height at t = 0, level, the
+    controller's joint commands at t = 0); returns the controller."""
     import mujoco
 
-    ctrl = TrotController(plan)
-    data.qpos[2] = H_STAND if short else H_CROUCH
+    ctrl = TrotController(plan, quad)
+    data.qpos[2] = plan.height(0.0)
     q0 = ctrl(0.0, data)
     for j, name in enumerate(JOINTS):
         data.qpos[model.joint(name).qposadr[0]] = q0[j]
@@ -354,8 +294,8 @@ def plot(r: QuadRun, out: Path) -> None:
     F = r.rec["F"] / 1e3
     push, pull = r.hyd.stall_force()
     for a, j, kind in zip(ax[2:], range(3), ("HAA", "HFE", "knee"), strict=True):
-        for i, g in enumerate(GEOMETRY):
-            a.plot(t, F[:, 3 * i + j], "-" if g.bend < 0 else "--", lw=0.8, label=f"{g.name}")
+        for i, (name, leg) in enumerate(zip(LEGS, r.quad.legs, strict=True)):
+            a.plot(t, F[:, 3 * i + j], "-" if leg.bend < 0 else "--", lw=0.8, label=name)
         for f in (push, pull):
             a.axhline(f / 1e3, color="grey", lw=0.6, ls="--")
         a.set_ylabel(f"{kind} F_rod, kN")
@@ -367,8 +307,8 @@ def plot(r: QuadRun, out: Path) -> None:
         a.legend(fontsize=7, ncol=4, loc="upper right")
         a.grid(alpha=0.3)
     ax[0].set_title(
-        f"Hydraulic quadruped in MuJoCo, 12 {robot.KIND_LABEL[r.kind]} actuators (68 kg, 16 MPa); "
-        "trot shaded, -- stall",
+        f"Hydraulic quadruped in MuJoCo, {len(JOINTS)} {robot.KIND_LABEL[r.kind]} actuators "
+        f"({r.quad.mass:.0f} kg, {r.hyd.p_supply / 1e6:g} MPa); trot shaded, -- stall",
         fontsize=10,
     )
     cli.write_figure(fig, out)
@@ -385,7 +325,7 @@ def report(r: QuadRun) -> None:
     if r.fell:
         print(f"  FELL at t = {r.t_end:.2f} s")
     print(
-        f"  stance: base at {s['stance_z']:.4f} m (command {H_STAND} m, largest error "
+        f"  stance: base at {s['stance_z']:.4f} m (command {r.plan.h_stand} m, largest error "
         f"{s['stance_err_max'] * 1e3:.1f} mm), tilt within {s['stance_tilt_max']:.2f} deg"
     )
     if "trot_z" in s:

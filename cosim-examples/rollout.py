@@ -1,9 +1,10 @@
 """N hydraulic quadrupeds (cosim-examples/mjcf/quadruped.xml, twelve ehsv.actuator plugin
 actuators each) through ``mujoco.rollout``, in MuJoCo's C threads, no Python in the loop.
 
-Each robot stands and squats with its own command (trunk height 0.55 m, down by
-2 x 15 mm and back at 1 + 0.25 k Hz for robot k; the joint commands through the legs'
-inverse kinematics and levers as x_ref of each rod), open loop from one initial state.
+Each robot stands and squats with its own command (from the keyframe `stand`'s trunk
+height down by 2 x 15 mm and back at 1 + 0.25 k Hz for robot k; the joint commands through
+the legs' inverse kinematics and levers, read from the model, as x_ref of each rod), open
+loop from one initial state.
 Prints robot-seconds per wall-second with 1 thread and with one per core, then the same
 for the quadruped with MuJoCo's own ``position`` actuators on the same tendons (nearly
 free), and their ratio; the same per CPU-second (the process's CPU time over all threads:
@@ -26,7 +27,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 import quadruped  # noqa: E402
-from ehsv import mjplugin, robot  # noqa: E402
+from ehsv import mjplugin  # noqa: E402
 
 #: MuJoCo's position actuator standing in for the cylinder (N/m, N s/m on the tendon)
 POSITION_KP, POSITION_KV = 2e5, 2e3
@@ -42,26 +43,21 @@ def position_model(timestep: float):
     return mujoco.MjModel.from_xml_string(text)
 
 
-def commands(n: int, nstep: int, h: float) -> np.ndarray:
-    """x_ref of every rod of every robot at every step, (n, nstep, 12), held 1 ms."""
-    levers = robot.LeverSet(quadruped.LEVERS)
+#: the squat of robot k: down by 2 x SQUAT_DEPTH and back at SQUAT_F0 + k SQUAT_DF Hz
+SQUAT_DEPTH, SQUAT_F0, SQUAT_DF = 0.015, 1.0, 0.25
+
+
+def commands(quad: quadruped.Quadruped, n: int, nstep: int, h: float) -> np.ndarray:
+    """x_ref of every rod of every robot at every step, (n, nstep, 12), held 1 ms: each
+    robot squats from the stance (``quad``: the robot as its model has it)."""
     every = max(1, round(1e-3 / h))
     out = np.empty((n, nstep, len(quadruped.JOINTS)))
     for k in range(n):
-        f = 1.0 + 0.25 * k
+        f = SQUAT_F0 + SQUAT_DF * k
         for i in range(0, nstep, every):
-            height = quadruped.H_STAND - 0.015 * (1 - np.cos(2 * np.pi * f * i * h))
-            out[k, i : i + every] = levers.rod(stance(height))[0]
+            height = quad.h_stand - SQUAT_DEPTH * (1 - np.cos(2 * np.pi * f * i * h))
+            out[k, i : i + every] = quad.levers.rod(quad.stance(height))[0]
     return out
-
-
-def stance(height: float) -> np.ndarray:
-    """Joint angles with every foot under its hip at trunk ``height`` (HAA at 0)."""
-    q = np.zeros(len(quadruped.JOINTS))
-    for i, g in enumerate(quadruped.GEOMETRY):
-        qh, qk = robot.leg_ik(height - quadruped.FOOT_R, 0.0, quadruped.L1, quadruped.L2, g.bend)
-        q[3 * i + 1 : 3 * i + 3] = (qh, qk)
-    return q
 
 
 def initial_state(model):
@@ -69,7 +65,8 @@ def initial_state(model):
     import mujoco
 
     data = mujoco.MjData(model)
-    quadruped.initial_pose(model, data, quadruped.Plan.short(), short=True)
+    quad = quadruped.Quadruped.of(model)
+    quadruped.initial_pose(model, data, quadruped.Plan.short(quad), quad)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state = np.empty(mujoco.mj_stateSize(model, spec))
     mujoco.mj_getState(model, data, state, spec)
@@ -102,8 +99,10 @@ def run(n: int, duration: float, timestep: float, substep: float, method: str, t
     hyd = mjplugin.load_model(quadruped.MJCF, "plugin", timestep, config)
     pos = position_model(timestep)
     nstep = round(duration / timestep)
-    x_ref = commands(n, nstep, timestep)
-    lmid = np.array([mjplugin.length_mid(quadruped.MJCF)[j] for j in quadruped.JOINTS])
+    quad = quadruped.Quadruped.of(hyd)
+    x_ref = commands(quad, n, nstep, timestep)
+    # the position actuators' ctrl is the tendon's length, the plugin's the rod's position
+    lmid = quad.levers.length_mid
     out = {}
     for nt in threads:
         r_h, c_h, states = rate(hyd, initial_state(hyd), x_ref, nt)

@@ -7,13 +7,18 @@ and tests run them with, on the plugin or, as the reference, on the FMU.
 * ``outputs(model, data, name)``: one output of every plugin actuator (each actuator's
   plugin_state slots hold the FMU's outputs in the table's order, ``contract.OUTPUTS``:
   docs/mujoco.md),
-* ``actuator_block``: the ``<actuator>`` of plugin actuators on the cylinders' tendons,
+* ``actuator_config(path)``: each plugin actuator's ``<config>`` in an MJCF file;
+  ``length_mid(path)`` and ``hydraulics(path)`` (the ``robot.Hydraulics`` the FMU bank
+  gets: the same as the plugin's) from it,
 * ``load_model(path, actuators, timestep, config)``: an MJCF file as written (plugin
   actuators) or with each plugin actuator turned into a ``general`` force actuator on the
   same tendon (``actuators="fmu"``: the FMU gives the force through ``ctrl``),
 * ``MjcfCosim``: the loop, the same for both: mj_step1 -> the command (x_ref) -> with the
   FMU: x_rod = actuator_length - length_mid, v_rod = actuator_velocity, doStep, ctrl =
   F_rod; with the plugin: ctrl = x_ref -> mj_step2 (the plugin steps inside it).
+
+The MJCF files are the one place of the robots' geometry and hydraulics: the examples read
+the levers, link lengths, joint ranges and keyframes from the loaded model (``robot``).
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from .contract import OUTPUTS
-from .robot import MONITORED, Hydraulics, Lever, LeverSet, Record, Timing
+from .robot import MONITORED, Hydraulics, LeverSet, Record, Timing
 
 ROOT = Path(__file__).resolve().parents[2]
 MJCF_DIR = ROOT / "cosim-examples" / "mjcf"
@@ -60,34 +65,6 @@ def load_plugin() -> Path:
         mujoco.mj_loadPluginLibrary(str(p))
         _loaded.append(str(p))
     return p
-
-
-def actuator_block(joints: Sequence[str], levers: Sequence[Lever], hyd: Hydraulics) -> str:
-    """Plugin actuators named after the joints, each on the tendon ``<joint>_cyl`` (the
-    cylinder between its pivots, length L(q)) with length_mid = L(q_mid), the position
-    loop, and ``hyd``'s values under the FMU's variable names."""
-    lines = []
-    half = hyd.stroke / 2
-    for j, lever in zip(joints, levers, strict=True):
-        config = {"control_mode": "position", **hyd.fmu_values(), "length_mid": lever.L_mid}
-        keys = "".join(f'\n        <config key="{k}" value="{_text(v)}"/>' for k, v in config.items())
-        head = f'<plugin name="{j}" plugin="{PLUGIN_NAME}" tendon="{j}_cyl" ctrlrange="{-half:g} {half:g}">'
-        lines.append(f"    {head}{keys}\n    </plugin>")
-    return "  <actuator>\n" + "\n".join(lines) + "\n  </actuator>"
-
-
-def keyframe(name: str, qpos: Sequence[float], ctrl: Sequence[float]) -> str:
-    """A keyframe (the viewer's Simulation > Key): a pose and its rod commands."""
-
-    def text(v):
-        return " ".join(repr(float(x)) for x in v)
-
-    return f'  <keyframe>\n    <key name="{name}" qpos="{text(qpos)}" ctrl="{text(ctrl)}"/>\n  </keyframe>'
-
-
-def _text(value) -> str:
-    """A config value as MJCF text: floats exactly (repr), the rest as str."""
-    return repr(value) if isinstance(value, float) else str(value)
 
 
 EXTENSION = f'  <extension><plugin plugin="{PLUGIN_NAME}"/></extension>'
@@ -132,13 +109,26 @@ def load_model(
     return mujoco.MjModel.from_xml_string(mjcf_text(path, actuators, timestep, config))
 
 
+def actuator_config(path: Path) -> dict[str, dict[str, str]]:
+    """Each plugin actuator's config keys and values (text) in the file, by actuator name."""
+    return {
+        name: dict(re.findall(r'<config key="([^"]+)" value="([^"]*)"/>', body))
+        for name, _, _, body in _PLUGIN_ACTUATOR.findall(Path(path).read_text())
+    }
+
+
 def length_mid(path: Path) -> dict[str, float]:
-    """Each plugin actuator's length_mid in the file (by actuator name)."""
-    out = {}
-    for name, _, _, body in _PLUGIN_ACTUATOR.findall(Path(path).read_text()):
-        m = re.search(r'key="length_mid" value="([^"]+)"', body)
-        out[name] = float(m[1]) if m else 0.0
-    return out
+    """Each plugin actuator's length_mid in the file (by actuator name; 0 if not set)."""
+    return {name: float(cfg.get("length_mid", 0.0)) for name, cfg in actuator_config(path).items()}
+
+
+def hydraulics(path: Path) -> Hydraulics:
+    """The hydraulics of the file's plugin actuators, which must all be the same (the FMU
+    bank sets one Hydraulics on every instance)."""
+    kinds = {Hydraulics.from_config(cfg) for cfg in actuator_config(path).values()}
+    if len(kinds) != 1:
+        raise ValueError(f"{path}: the plugin actuators' hydraulics differ ({len(kinds)} kinds)")
+    return kinds.pop()
 
 
 def outputs(model, data, name: str, actuators: Sequence[int]) -> np.ndarray:
@@ -153,9 +143,10 @@ class MjcfCosim:
     plugin (``bank`` None) or by an FMU bank (``bank``: robot.FmuBank started at x_rod = 0,
     x_ref = 0, as the plugin starts; the model from ``load_model(..., "fmu")``). The
     commands: ``controller(t, data)`` gives joint angles every ``cmd_every`` steps, turned
-    into x_ref through ``levers``. Records as robot.Cosim does."""
+    into x_ref through ``levers`` (robot.lever_set: read from the model; their length_mid
+    gives the FMU's x_rod from the tendon's length). Records as robot.Cosim does."""
 
-    def __init__(self, model, data, joints: Sequence[str], levers: LeverSet, controller, lmid, bank=None):
+    def __init__(self, model, data, joints: Sequence[str], levers: LeverSet, controller, bank=None):
         import mujoco
 
         self.mj, self.model, self.data = mujoco, model, data
@@ -163,7 +154,7 @@ class MjcfCosim:
         self.act = np.array([model.actuator(j).id for j in joints])
         ids = [model.joint(j).id for j in joints]
         self.qadr = np.array([model.jnt_qposadr[i] for i in ids])
-        self.lmid = np.array([lmid[j] for j in joints])
+        self.lmid = levers.length_mid
         self.timing, self.rec = Timing(), Record()
         self.q_cmd = np.zeros(len(joints))
         self.kind = "plugin" if bank is None else "fmu"

@@ -2,16 +2,20 @@
 
 What cosim-examples/hydraulic_leg.py and quadruped.py share:
 
-* ``Hydraulics``: supply, relief setting, position gain and the cylinder's areas; the
-  stall and relief-bounded forces the rod can carry,
-* ``Lever``: the cylinder's mounting. Its base pivot sits on the parent link at ``d`` from
-  the joint, its rod end on the child link at the lever arm ``r``; the cylinder's length
-  is the third side of that triangle, ``L(q) = sqrt(d^2 + r^2 - 2 d r cos psi(q))`` with
-  ``psi = pi/2 + sign (q - q_mid)``, so the lever is perpendicular to the cylinder (the
-  moment arm is largest, ~r) at ``q_mid``, which is mapped to mid-stroke:
-  ``x_rod = L(q) - L(q_mid)``, ``v_rod = L'(q) qdot`` and the joint torque of a rod force
-  is ``tau = F_rod L'(q)`` (virtual work). ``LeverSet`` evaluates all of a robot's levers
-  at once (numpy),
+* ``Hydraulics``: supply, relief setting, position gain and the cylinder's areas, as the
+  robot's MJCF configures its plugin actuators (``from_config``); the stall and
+  relief-bounded forces the rod can carry,
+* ``Lever``: the cylinder's mounting, read from the model (``lever_set``): the spatial
+  tendon ``<joint>_cyl`` of the actuator named after the joint runs from the base pivot (a
+  site on the parent link, ``d`` from the joint's axis) to the rod end (a site on the
+  child link, the lever arm ``r``). The cylinder's length is the third side of that
+  triangle, ``L(q) = sqrt(dz^2 + d^2 + r^2 - 2 d r cos(q + phase))`` (dz: the pivots'
+  offset along the axis), MuJoCo's tendon length, and the rod's position is
+  ``x_rod = L(q) - length_mid`` (the plugin's length_mid: L at mid-stroke, where the files
+  put the lever perpendicular to the cylinder: the moment arm is largest there). So
+  ``v_rod = L'(q) qdot`` and the joint torque of a rod force is ``tau = F_rod L'(q)``
+  (virtual work). ``LeverSet`` evaluates all of a robot's levers at once (numpy): the
+  controllers' joint commands become rod commands x_ref through it,
 * ``FmuBank``: the EhsvActuator FMU with its motion port (``cylinder.port`` = motion: the
   host owns the moving mass and sends ``x_rod``/``v_rod``, the FMU answers ``F_rod``),
   called through fmpy's ctypes functions on preallocated arrays, one setReal / doStep /
@@ -20,7 +24,9 @@ What cosim-examples/hydraulic_leg.py and quadruped.py share:
 * ``Timing``, ``Record``: the wall time split into MuJoCo, the actuator calls and the
   Python around them; the records of a run,
 * ``smooth``: the half-cosine ramps of the examples' plans,
-* ``leg_ik``: the 2-link leg's joint angles that put the foot at a point below the hip,
+* ``leg_ik``: the 2-link leg's joint angles that put the foot at a point below the hip;
+  ``LegKinematics``: a leg's link lengths, foot, hip position and knee bend read from the
+  model, and the joint angles of a trunk height through leg_ik,
 * ``render_frames``/``save_strip``: MuJoCo's offscreen renderer (MUJOCO_GL=egl or osmesa);
   where no GL context can be made they say why and the caller goes on without a picture,
 * the examples' command line (``parser``: --duration, --short, --actuator, --method,
@@ -59,17 +65,51 @@ MONITORED = ("p_A", "p_B", "i_coil")
 # ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Hydraulics:
-    """Supply, relief setting, position loop and cylinder geometry of every actuator."""
+    """Supply, relief setting, position loop and cylinder geometry of every actuator, as
+    the robot's MJCF configures its plugin actuators (``from_config``): the FMU bank sets
+    the same values on its instances (``fmu_values``), so both run one robot."""
 
-    p_supply: float = 16e6  # Pa, input p_supply
-    p_crack: float = 21e6  # Pa, relief.p_crack (must be above p_supply)
-    dp_override: float = 1e6  # Pa, relief.dp_override (the FMU's default)
-    Kp: float = 0.6  # A/m, position.Kp (0.6 mA per mm)
-    C_leak: float = 1e-12  # m3/(s Pa), cylinder.C_leak: a bypass across the piston
-    f_loop: float = 10e3  # Hz, loop.f_sample: the position loop sampled at the host's 1e-4 s
-    bore: float = 0.016
-    rod: float = 0.010
-    stroke: float = 0.08
+    p_supply: float  # Pa, input p_supply
+    p_crack: float  # Pa, relief.p_crack (must be above p_supply)
+    dp_override: float  # Pa, relief.dp_override
+    Kp: float  # A/m, position.Kp
+    C_leak: float  # m3/(s Pa), cylinder.C_leak: a bypass across the piston
+    f_loop: float  # Hz, loop.f_sample: the position loop's sampling rate
+    bore: float  # m, cylinder.bore
+    rod: float  # m, cylinder.rod
+    stroke: float  # m, cylinder.stroke
+
+    #: each field's FMU variable (the plugin's config key)
+    KEYS = {
+        "p_supply": "p_supply",
+        "p_crack": "relief.p_crack",
+        "dp_override": "relief.dp_override",
+        "Kp": "position.Kp",
+        "C_leak": "cylinder.C_leak",
+        "f_loop": "loop.f_sample",
+        "bore": "cylinder.bore",
+        "rod": "cylinder.rod",
+        "stroke": "cylinder.stroke",
+    }
+    #: config keys that are not the FMU's parameters: the plugin's transmission, and the
+    #: control mode, which must be the position loop (the FMU bank sets it: FmuBank.MODES)
+    PLUGIN_KEYS = ("length_mid", "control_mode")
+
+    @classmethod
+    def from_config(cls, config: dict[str, str]) -> Hydraulics:
+        """The hydraulics of a plugin actuator's ``<config>`` (key -> text). Refuses a key
+        it would not hand to the FMU (the FMU-driven robot would differ from the
+        plugin-driven one) and a control mode other than the position loop."""
+        names = {key: name for name, key in cls.KEYS.items()}
+        unknown = set(config) - set(names) - set(cls.PLUGIN_KEYS)
+        if unknown:
+            raise ValueError(f"config keys {sorted(unknown)}: not hydraulics the FMU bank sets")
+        missing = set(names) - set(config)
+        if missing:
+            raise ValueError(f"config lacks {sorted(missing)}")
+        if config.get("control_mode") != "position":
+            raise ValueError(f"control_mode {config.get('control_mode')!r}: the robots run the position loop")
+        return cls(**{names[k]: float(v) for k, v in config.items() if k in names})
 
     @property
     def A_A(self) -> float:
@@ -90,65 +130,54 @@ class Hydraulics:
         return p * self.A_A + 0.1e6 * self.A_B, -(p * self.A_B + 0.1e6 * self.A_A)
 
     def fmu_values(self) -> dict:
-        return {
-            "cylinder.bore": self.bore,
-            "cylinder.rod": self.rod,
-            "cylinder.stroke": self.stroke,
-            "relief.p_crack": self.p_crack,
-            "relief.dp_override": self.dp_override,
-            "position.Kp": self.Kp,
-            "cylinder.C_leak": self.C_leak,
-            "loop.f_sample": self.f_loop,
-            "p_supply": self.p_supply,
-        }
+        return {key: getattr(self, name) for name, key in self.KEYS.items()}
 
 
 @dataclass(frozen=True)
 class Lever:
-    """A cylinder mounted across one joint (see the module's docstring).
+    """A cylinder mounted across one hinge (see the module's docstring), as the model has
+    it: ``d``, ``r``: the base pivot's and the rod end's distances from the joint's axis
+    (m), ``dz``: their offset along it, ``phase``: the angle from the base pivot to the rod
+    end about the axis at q = 0 (rad), ``length_mid``: the cylinder's length at
+    mid-stroke (the plugin's config), ``joint``: the hinge's name."""
 
-    ``d``: base pivot's distance from the joint on the parent link (m), ``r``: the lever
-    arm on the child link (m), ``q_mid``: the joint angle at mid-stroke (rad, the lever
-    perpendicular to the cylinder), ``sign``: +1 when the rod extends as q grows.
-    ``base_angle``: the direction of the base pivot from the joint in the parent's frame,
-    measured in the joint's plane (only for drawing the cylinder; the physics needs d, r,
-    q_mid and sign)."""
-
+    joint: str
     d: float
     r: float
-    q_mid: float
-    sign: int
-    base_angle: float = 0.0
-
-    @property
-    def L_mid(self) -> float:
-        return math.hypot(self.d, self.r)
+    dz: float
+    phase: float
+    length_mid: float
 
     def rod(self, q: float) -> tuple[float, float]:
         """x_rod (m from mid-stroke) and dx_rod/dq (m/rad, the moment arm) at q."""
-        psi = math.pi / 2 + self.sign * (q - self.q_mid)
-        L = math.sqrt(self.d**2 + self.r**2 - 2 * self.d * self.r * math.cos(psi))
-        return L - self.L_mid, self.sign * self.d * self.r * math.sin(psi) / L
+        L = math.sqrt(self.dz**2 + self.d**2 + self.r**2 - 2 * self.d * self.r * math.cos(q + self.phase))
+        return L - self.length_mid, self.d * self.r * math.sin(q + self.phase) / L
 
-    def rod_end_angle(self) -> float:
-        """The lever's direction in the child's frame (same angle convention as
-        base_angle), so that the angle between base and rod end is psi."""
-        return self.base_angle + self.sign * math.pi / 2 - self.q_mid
-
-    def joint_range(self, stroke: float, margin: float = 0.002) -> tuple[float, float]:
-        """The joint angles between which the rod stays ``margin`` inside its stroke
-        (searched on a grid over |q - q_mid| < pi)."""
-        q = self.q_mid + np.linspace(-math.pi * 0.999, math.pi * 0.999, 20001)
-        x = np.array([self.rod(float(a))[0] for a in q])
-        ok = np.abs(x) <= stroke / 2 - margin
-        i0 = len(q) // 2
-        lo = i0
-        while lo > 0 and ok[lo - 1]:
-            lo -= 1
-        hi = i0
-        while hi < len(q) - 1 and ok[hi + 1]:
-            hi += 1
-        return float(q[lo]), float(q[hi])
+    @classmethod
+    def of_tendon(cls, model, rest, tendon: int, length_mid: float) -> Lever:
+        """The lever of the spatial tendon ``tendon`` (two sites: the base pivot on the
+        hinge's parent body, the rod end on the hinge's body); ``rest``: an MjData with
+        the model's kinematics at qpos0, where the geometry is measured."""
+        base, end = _tendon_sites(model, tendon)
+        body = model.site_bodyid[end]
+        joint = _hinge_of(model, body)
+        if model.site_bodyid[base] != model.body_parentid[body]:
+            name = model.tendon(tendon).name
+            raise ValueError(f"tendon {name}: its first site is not on the hinge's parent body")
+        axis, anchor = rest.xaxis[joint], rest.xanchor[joint]
+        b, e = rest.site_xpos[base] - anchor, rest.site_xpos[end] - anchor
+        b_plane, e_plane = b - (b @ axis) * axis, e - (e @ axis) * axis
+        # the angle from the base pivot to the rod end about the axis, at the joint's qpos0
+        angle = math.atan2(axis @ np.cross(b_plane, e_plane), b_plane @ e_plane)
+        q0 = model.qpos0[model.jnt_qposadr[joint]]
+        return cls(
+            joint=model.joint(joint).name,
+            d=float(np.linalg.norm(b_plane)),
+            r=float(np.linalg.norm(e_plane)),
+            dz=float((b - e) @ axis),
+            phase=angle - float(q0),
+            length_mid=length_mid,
+        )
 
 
 class LeverSet:
@@ -156,21 +185,62 @@ class LeverSet:
 
     def __init__(self, levers: Sequence[Lever]):
         self.levers = tuple(levers)
-        self.d = np.array([lv.d for lv in levers])
-        self.r = np.array([lv.r for lv in levers])
-        self.q_mid = np.array([lv.q_mid for lv in levers])
-        self.sign = np.array([float(lv.sign) for lv in levers])
-        self._dd_rr = self.d**2 + self.r**2
-        self._2dr = 2 * self.d * self.r
-        self._sdr = self.sign * self.d * self.r
-        self._L_mid = np.sqrt(self._dd_rr)
-        self._offset = math.pi / 2 - self.sign * self.q_mid
+        d, r = np.array([lv.d for lv in levers]), np.array([lv.r for lv in levers])
+        dz = np.array([lv.dz for lv in levers])
+        self.phase = np.array([lv.phase for lv in levers])
+        self.length_mid = np.array([lv.length_mid for lv in levers])
+        self._squares = dz**2 + d**2 + r**2
+        self._2dr = 2 * d * r
+        self._dr = d * r
 
     def rod(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """x_rod and dx_rod/dq for the joint angles q (one per lever)."""
-        psi = self.sign * q + self._offset
-        L = np.sqrt(self._dd_rr - self._2dr * np.cos(psi))
-        return L - self._L_mid, self._sdr * np.sin(psi) / L
+        psi = q + self.phase
+        L = np.sqrt(self._squares - self._2dr * np.cos(psi))
+        return L - self.length_mid, self._dr * np.sin(psi) / L
+
+
+def _tendon_sites(model, tendon: int) -> tuple[int, int]:
+    """The two sites of a straight spatial tendon (the drawn cylinder)."""
+    import mujoco
+
+    adr, num = model.tendon_adr[tendon], model.tendon_num[tendon]
+    types = model.wrap_type[adr : adr + num]
+    if num != 2 or any(t != mujoco.mjtWrap.mjWRAP_SITE for t in types):
+        raise ValueError(f"tendon {model.tendon(tendon).name}: not a spatial tendon between two sites")
+    return int(model.wrap_objid[adr]), int(model.wrap_objid[adr + 1])
+
+
+def _hinge_of(model, body: int) -> int:
+    """The one joint of ``body``, a hinge (the joint a cylinder's rod end turns about)."""
+    import mujoco
+
+    if model.body_jntnum[body] != 1 or model.jnt_type[model.body_jntadr[body]] != mujoco.mjtJoint.mjJNT_HINGE:
+        raise ValueError(f"body {model.body(body).name}: a rod end's body needs one hinge joint")
+    return int(model.body_jntadr[body])
+
+
+def rest_kinematics(model):
+    """An MjData at the model's qpos0 with its kinematics computed: where geometry is read."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    return data
+
+
+def lever_set(model, joints: Sequence[str], length_mid: dict[str, float]) -> LeverSet:
+    """The levers of the actuators named after ``joints`` (each on a tendon that turns
+    about that joint), with their length_mid (by actuator name)."""
+    rest = rest_kinematics(model)
+    levers = []
+    for name in joints:
+        tendon = model.actuator_trnid[model.actuator(name).id, 0]
+        lever = Lever.of_tendon(model, rest, tendon, length_mid[name])
+        if lever.joint != name:
+            raise ValueError(f"actuator {name}'s tendon turns about joint {lever.joint}")
+        levers.append(lever)
+    return LeverSet(levers)
 
 
 # ---------------------------------------------------------------------------------------
@@ -388,6 +458,45 @@ def leg_ik(depth: float, fwd: float, L1: float, L2: float, bend: int) -> tuple[f
     return phi - alpha, qk
 
 
+@dataclass(frozen=True)
+class LegKinematics:
+    """A 2-link leg as the model has it (hip flexion and knee hinges about the trunk's y
+    axis, a round foot): ``hip``, the hip axis's point in the trunk's frame (m);
+    ``thigh``, hip axis to knee axis; ``shank``, knee axis to the foot's centre;
+    ``foot_radius``; ``bend``, leg_ik's knee direction: the sign of the knee's joint
+    range (it lies on one side of the straight leg)."""
+
+    hip: tuple[float, float, float]
+    thigh: float
+    shank: float
+    foot_radius: float
+    bend: int
+
+    @classmethod
+    def of(cls, model, trunk: str, hip: str, knee: str, foot: str) -> LegKinematics:
+        """The leg of the joints ``hip`` and ``knee`` and the sphere geom ``foot``, below
+        the body ``trunk``."""
+        rest = rest_kinematics(model)
+        t, h, k = model.body(trunk).id, model.joint(hip).id, model.joint(knee).id
+        hip_pos, knee_pos = rest.xanchor[h], rest.xanchor[k]
+        foot_pos = rest.geom_xpos[model.geom(foot).id]
+        in_trunk = rest.xmat[t].reshape(3, 3).T @ (hip_pos - rest.xpos[t])
+        return cls(
+            hip=tuple(float(c) for c in in_trunk),
+            thigh=float(np.linalg.norm(knee_pos - hip_pos)),
+            shank=float(np.linalg.norm(foot_pos - knee_pos)),
+            foot_radius=float(model.geom(foot).size[0]),
+            bend=int(np.sign(model.jnt_range[k].sum())),
+        )
+
+    def angles(self, height: float) -> tuple[float, float]:
+        """Hip flexion and knee angles that put the foot on the ground under the hip with
+        the trunk level and its origin ``height`` above the ground (a foot lifted by l:
+        ``height - l``)."""
+        depth = height + self.hip[2] - self.foot_radius
+        return leg_ik(depth, 0.0, self.thigh, self.shank, self.bend)
+
+
 # ---------------------------------------------------------------------------------------
 # the co-simulation loop
 # ---------------------------------------------------------------------------------------
@@ -445,47 +554,8 @@ def _as_slice(idx: np.ndarray):
 
 
 # ---------------------------------------------------------------------------------------
-# MJCF helpers and pictures
+# pictures
 # ---------------------------------------------------------------------------------------
-def planar(angle: float, length: float, axis: str) -> tuple[float, float, float]:
-    """A point at ``length`` from a hinge about ``axis`` ('x' or 'y') in the direction
-    ``angle`` (0 = +z; a positive angle is where a positive hinge rotation turns +z)."""
-    if axis == "y":
-        return (length * math.sin(angle), 0.0, length * math.cos(angle))
-    return (0.0, -length * math.sin(angle), length * math.cos(angle))
-
-
-def fmt(v: Sequence[float]) -> str:
-    return " ".join(f"{c:.6g}" for c in v)
-
-
-def cylinder_sites(
-    name: str, lever: Lever, axis: str, joint_pos=(0.0, 0.0, 0.0), side: float = 0.0
-) -> tuple[str, str]:
-    """MJCF of the two sites (base pivot in the parent body, relative to the joint at
-    ``joint_pos``; rod end in the child body, whose origin is the joint), both moved by
-    ``side`` along the joint's axis (the cylinder beside the links: same length)."""
-    k = 1 if axis == "y" else 0
-    b = list(planar(lever.base_angle, lever.d, axis))
-    e = list(planar(lever.rod_end_angle(), lever.r, axis))
-    b[k] += side
-    e[k] += side
-    base = tuple(j + c for j, c in zip(joint_pos, b, strict=True))
-    return (
-        f'<site name="{name}_base" pos="{fmt(base)}" size="0.012" rgba=".3 .3 .35 1"/>',
-        f'<site name="{name}_end" pos="{fmt(e)}" size="0.01" rgba=".75 .75 .8 1"/>',
-    )
-
-
-def cylinder_tendon(name: str) -> str:
-    """A spatial tendon between the two sites: drawn as the cylinder; its length is the
-    lever's L(q), a check of the geometry (no stiffness: no force)."""
-    return (
-        f'<spatial name="{name}" width="0.013" rgba=".9 .55 .1 1">'
-        f'<site site="{name}_base"/><site site="{name}_end"/></spatial>'
-    )
-
-
 def gl_backend() -> str:
     """The MUJOCO_GL in force, set to 'egl' when unset (must run before mujoco's import)."""
     os.environ.setdefault("MUJOCO_GL", "egl")
@@ -561,32 +631,6 @@ def save_strip(images: Sequence[np.ndarray], labels: Sequence[str], out) -> None
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=100)
     plt.close(fig)
-
-
-def scene_head(name: str, texrepeat: int, light: str, light_dir: str, floor: float) -> str:
-    """The MJCF both robots open with: compiler, the 1e-4 s Euler step of the coupling
-    loop, the look (checker floor, sky, one light) and the floor they stand on."""
-    return f"""<mujoco model="{name}">
-  <compiler angle="radian"/>
-  <extension><plugin plugin="ehsv.actuator"/></extension>
-  <option timestep="1e-4" integrator="Euler"/>
-  <visual><global offwidth="800" offheight="800"/><quality shadowsize="2048"/></visual>
-  <asset>
-    <texture name="grid" type="2d" builtin="checker" rgb1=".82 .84 .86" rgb2=".70 .72 .75"
-             width="256" height="256"/>
-    <material name="grid" texture="grid" texrepeat="{texrepeat} {texrepeat}" reflectance="0"/>
-    <texture name="sky" type="skybox" builtin="gradient" rgb1=".95 .97 1" rgb2=".75 .8 .9"
-             width="256" height="256"/>
-  </asset>
-  <default>
-    <joint armature="0.002" damping="0.05"/>
-    <geom contype="0" conaffinity="0"/>
-    <default class="link"><geom rgba=".25 .45 .7 1"/></default>
-  </default>
-  <worldbody>
-    <light pos="{light}" dir="{light_dir}" diffuse=".8 .8 .8" castshadow="true"/>
-    <geom name="floor" type="plane" size="{floor} {floor} 0.05" material="grid" contype="1" conaffinity="1"
-          friction="1 0.005 0.0001" solref="0.004 1"/>"""
 
 
 # ---------------------------------------------------------------------------------------

@@ -1,7 +1,8 @@
 """The hydraulic leg and quadruped in MuJoCo (cosim-examples/hydraulic_leg.py, quadruped.py),
 each joint driven by the EhsvActuator FMU's motion port through a lever.
 
-* the levers' geometry and the leg's inverse kinematics (no FMU),
+* the levers' law (as read from the robots' MJCF), the rods' travel over the stances the
+  examples command, and the leg's inverse kinematics (no FMU),
 * the leg stands up from sitting and holds its 20 kg trunk (0.6 s), against each built
   archive: trunk height on its command, rod forces inside what the supply and the relief
   valves allow, pressures under the relief setting, MuJoCo's tendon (the drawn cylinder)
@@ -54,31 +55,59 @@ def _fmu_leg(version: str, method: str = "exact"):
     return hydraulic_leg.run(short=True, kind="fmu", version=version, render=False, method=method)
 
 
+def _model(example):
+    """The example's MJCF with general actuators on the cylinders (no plugin needed)."""
+    from ehsv import mjplugin
+
+    return mjplugin.load_model(example.MJCF, "fmu")
+
+
 # -- geometry ----------------------------------------------------------------------------
-@pytest.mark.parametrize("lever", hydraulic_leg.LEVERS + quadruped.LEVERS[:3])
-def test_lever_law_and_its_slope(lever):
-    """x_rod(q_mid) = 0, the slope is the moment arm (r at q_mid), and it is dx/dq."""
-    x, arm = lever.rod(lever.q_mid)
-    assert x == pytest.approx(0.0, abs=1e-15)
-    assert abs(arm) == pytest.approx(lever.r * lever.d / lever.L_mid, rel=1e-12)
-    for q in np.linspace(lever.q_mid - 1.0, lever.q_mid + 1.0, 9):
-        e = 1e-6
-        num = (lever.rod(q + e)[0] - lever.rod(q - e)[0]) / (2 * e)
-        assert lever.rod(q)[1] == pytest.approx(num, rel=1e-6, abs=1e-9)
-    vec = robot.LeverSet([lever, lever])
-    q = np.array([lever.q_mid - 0.3, lever.q_mid + 0.4])
-    xs, dxs = vec.rod(q)
-    for i in range(2):
+@pytest.mark.parametrize("example", [hydraulic_leg, quadruped])
+def test_lever_law_and_its_slope(example):
+    """x_rod is 0 where the lever is perpendicular to the cylinder (mid-stroke), the
+    slope there is the moment arm d r / L, and it is dx/dq; LeverSet is each Lever."""
+    model = _model(example)
+    levers = (
+        hydraulic_leg.Leg.of(model) if example is hydraulic_leg else quadruped.Quadruped.of(model)
+    ).levers
+    for lever in levers.levers:
+        q_mid = math.pi / 2 - lever.phase
+        x, arm = lever.rod(q_mid)
+        assert x == pytest.approx(0.0, abs=1e-6)  # the sites' 6 digits
+        assert abs(arm) == pytest.approx(lever.r * lever.d / lever.length_mid, rel=1e-6)
+        for q in np.linspace(q_mid - 1.0, q_mid + 1.0, 9):
+            e = 1e-6
+            num = (lever.rod(q + e)[0] - lever.rod(q - e)[0]) / (2 * e)
+            assert lever.rod(q)[1] == pytest.approx(num, rel=1e-6, abs=1e-9)
+    q = np.linspace(-0.5, 0.5, len(levers.levers))
+    xs, dxs = levers.rod(q)
+    for i, lever in enumerate(levers.levers):
         assert (xs[i], dxs[i]) == pytest.approx(lever.rod(float(q[i])), rel=1e-12, abs=1e-15)
 
 
 def test_leg_range_inside_the_stroke():
-    """Every height the leg is commanded to maps inside the 80 mm stroke."""
-    stroke = robot.Hydraulics().stroke
-    for h in np.linspace(hydraulic_leg.H_SIT, 0.66, 40):
-        q = hydraulic_leg.joint_command(h)
-        for lever, qj in zip(hydraulic_leg.LEVERS, q, strict=True):
-            assert abs(lever.rod(qj)[0]) < stroke / 2 - 0.005, (h, q)
+    """Every height the leg is commanded to (sitting to the hop's push-off and beyond)
+    maps inside the stroke."""
+    from ehsv import mjplugin
+
+    leg = hydraulic_leg.Leg.of(_model(hydraulic_leg))
+    stroke = mjplugin.hydraulics(hydraulic_leg.MJCF).stroke
+    for h in np.linspace(leg.h_sit, 0.66, 40):
+        x = leg.levers.rod(np.array(leg.joint_command(h)))[0]
+        assert np.abs(x).max() < stroke / 2 - 0.005, (h, x)
+
+
+def test_quadruped_range_inside_the_stroke():
+    """Every stance the quadruped is commanded to (the crouch to the stance, a foot lifted
+    by the trot's 5 cm, the attitude feedback's few cm) maps inside the stroke."""
+    from ehsv import mjplugin
+
+    quad = quadruped.Quadruped.of(_model(quadruped))
+    stroke = mjplugin.hydraulics(quadruped.MJCF).stroke
+    for h in np.linspace(quad.h_crouch, quad.h_stand + 0.03, 40):
+        x = quad.levers.rod(quad.stance(h))[0]
+        assert np.abs(x).max() < stroke / 2 - 0.005, (h, x)
 
 
 @pytest.mark.parametrize("bend", [1, -1])
@@ -99,9 +128,9 @@ def _check_leg(r) -> None:
     # stood up and holds the trunk at its command (0.55 m) within a few millimetres
     assert abs(s["hold_err_mean"]) < 0.005, s
     assert s["hold_err_max"] < 0.01, s
-    assert abs(r.height[-1] - hydraulic_leg.H_STAND) < 0.005
+    assert abs(r.height[-1] - r.plan.h_stand) < 0.005
     # the foot stayed on the ground
-    assert r.rec["probe"][:, 2].max() - hydraulic_leg.FOOT_R < 0.005
+    assert r.rec["probe"][:, 2].max() - r.leg.kinematics.foot_radius < 0.005
     # forces: inside what the chambers can make under the relief valves; the knee carries
     # the trunk (pushes), holding it takes less than the stall force
     push, pull = hyd.relief_force()
@@ -116,9 +145,11 @@ def _check_leg(r) -> None:
     # mass by 3/4 dh, the shank's by 1/4 dh)
     h = r.height[-1]
     e = 1e-6
-    dq_dh = (np.array(hydraulic_leg.joint_command(h + e)) - hydraulic_leg.joint_command(h - e)) / (2 * e)
-    tau = r.rec["F"][-1] * hydraulic_leg.LeverSet(hydraulic_leg.LEVERS).rod(r.rec["q"][-1])[1]
-    m = hydraulic_leg.M_TRUNK + 0.75 * hydraulic_leg.M_THIGH + 0.25 * hydraulic_leg.M_SHANK
+    dq_dh = (np.array(r.leg.joint_command(h + e)) - r.leg.joint_command(h - e)) / (2 * e)
+    tau = r.rec["F"][-1] * r.leg.levers.rod(r.rec["q"][-1])[1]
+    model = _model(hydraulic_leg)
+    trunk, thigh, shank = (float(model.body(b).mass[0]) for b in ("trunk", "thigh", "shank"))
+    m = trunk + 0.75 * thigh + 0.25 * shank  # the shank's mass holds its foot
     assert float(tau @ dq_dh) == pytest.approx(m * 9.81, rel=0.1)  # still settling
     # pressures: below the relief setting, above the cavitation floor
     for p in ("p_A", "p_B"):
@@ -177,8 +208,8 @@ def _check_quadruped(r) -> None:
     pr = r.rec["probe"]
     z, roll, pitch = pr[:, 0], pr[:, 2], pr[:, 3]
     # it settles in from a start with the chambers' forces at zero
-    assert np.abs(z - quadruped.H_STAND).max() < 0.01
-    assert np.abs(z[r.t > 0.15] - quadruped.H_STAND).max() < 0.005
+    assert np.abs(z - r.plan.h_stand).max() < 0.01
+    assert np.abs(z[r.t > 0.15] - r.plan.h_stand).max() < 0.005
     assert np.degrees(np.abs(roll)).max() < 0.5 and np.degrees(np.abs(pitch)).max() < 0.5
     push, pull = r.hyd.relief_force()
     F = r.rec["F"]

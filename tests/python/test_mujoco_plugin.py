@@ -1,6 +1,10 @@
 """The ehsv.actuator MuJoCo plugin (mujoco-plugin/, target/release/libehsv_mujoco.so):
 
 * it loads and registers, and the robots' MJCF files compile with it,
+* the MJCF files are the robots' one description: the levers the examples read from them
+  are MuJoCo's cylinders (tendons), perpendicular at mid-stroke, their "stand" keyframes
+  are the examples' stance with the rods' commands that hold it, and their actuators'
+  config is the hydraulics the FMU-driven robot gets,
 * the plugin-driven leg equals the FMU-driven leg (same MJCF, same scenario and loop
   order) to 1e-9 of each signal's range,
 * mj_getState / mj_setState mid-run restores the hydraulic state bit for bit (into the
@@ -9,6 +13,8 @@
 * a bad configuration is refused with a message that names the key,
 * the leg stands at each documented host timestep (docs/mujoco.md).
 """
+
+import math
 
 import numpy as np
 import pytest
@@ -43,8 +49,9 @@ def _bits(a) -> np.ndarray:
 def _leg(timestep=None):
     model = mjplugin.load_model(hydraulic_leg.MJCF, "plugin", timestep)
     data = mujoco.MjData(model)
-    q0 = hydraulic_leg.joint_command(hydraulic_leg.H_STAND)
-    data.qpos[model.joint("rail").qposadr[0]] = hydraulic_leg.H_STAND
+    leg = hydraulic_leg.Leg.of(model)
+    q0 = leg.joint_command(leg.h_stand)
+    data.qpos[model.joint("rail").qposadr[0]] = leg.h_stand
     for j, q in zip(hydraulic_leg.JOINTS, q0, strict=True):
         data.qpos[model.joint(j).qposadr[0]] = q
     mujoco.mj_forward(model, data)
@@ -131,7 +138,8 @@ def test_rollout_equals_serial_run():
 
     model = mjplugin.load_model(quadruped.MJCF)
     data = mujoco.MjData(model)
-    quadruped.initial_pose(model, data, quadruped.Plan.short(), short=True)
+    quad = quadruped.Quadruped.of(model)
+    quadruped.initial_pose(model, data, quadruped.Plan.short(quad), quad)
     x0 = _state(model, data)
     nstep, nu = 150, model.nu
     rng = np.random.default_rng(1)
@@ -196,11 +204,99 @@ def test_leg_stands_at_the_documented_host_timesteps(timestep):
     assert s["p_max"] < r.hyd.p_crack + r.hyd.dp_override
 
 
+def _robot(example, model):
+    """The example's robot as it reads it from the model (its levers, heights, legs)."""
+    return hydraulic_leg.Leg.of(model) if example is hydraulic_leg else quadruped.Quadruped.of(model)
+
+
+def _stance(example, robot, height: float) -> np.ndarray:
+    """The example's joint commands (JOINTS' order) for a level stance at ``height``."""
+    return np.array(robot.joint_command(height) if example is hydraulic_leg else robot.stance(height))
+
+
+def _joint_qpos(model, joints) -> np.ndarray:
+    return np.array([model.joint(j).qposadr[0] for j in joints])
+
+
 @pytest.mark.parametrize("example", [hydraulic_leg, quadruped])
-def test_mjcf_files_are_the_examples_robots(example):
-    """cosim-examples/mjcf/*.xml are what the examples' mjcf() writes (levers, tendons,
-    actuators, keyframe): regenerate them with it after changing the geometry."""
-    assert example.MJCF.read_text() == example.mjcf().lstrip() + "\n"
+def test_the_levers_read_from_the_model_are_its_cylinders(example):
+    """At any pose, the rod position the examples command through the levers (read from
+    the sites) is MuJoCo's cylinder (the tendon between the sites) minus length_mid, the
+    rod the actuator moves; the levers' moment arm is the tendon length's slope."""
+    model = mjplugin.load_model(example.MJCF, "fmu")  # the same tendons, no plugin needed
+    data = mujoco.MjData(model)
+    levers = _robot(example, model).levers
+    adr = _joint_qpos(model, example.JOINTS)
+    act = [model.actuator(j).id for j in example.JOINTS]
+    rng = np.random.default_rng(7)
+    lo, hi = (np.array([model.joint(j).range[k] for j in example.JOINTS]) for k in (0, 1))
+    for _ in range(20):
+        q = rng.uniform(lo, hi)
+        data.qpos[adr] = q
+        mujoco.mj_fwdPosition(model, data)
+        x, arm = levers.rod(q)
+        assert np.allclose(x, data.actuator_length[act] - levers.length_mid, rtol=0, atol=1e-12)
+        for i in range(len(q)):
+            e = 1e-6
+            dq = np.zeros(len(q))
+            dq[i] = e
+            slope = (levers.rod(q + dq)[0][i] - levers.rod(q - dq)[0][i]) / (2 * e)
+            data.qpos[adr] = q + dq
+            mujoco.mj_fwdPosition(model, data)
+            up = data.actuator_length[act[i]]
+            data.qpos[adr] = q - dq
+            mujoco.mj_fwdPosition(model, data)
+            assert arm[i] == pytest.approx(slope, abs=1e-9)
+            assert arm[i] == pytest.approx((up - data.actuator_length[act[i]]) / (2 * e), abs=1e-9)
+
+
+@pytest.mark.parametrize("example", [hydraulic_leg, quadruped])
+def test_each_lever_is_perpendicular_at_mid_stroke(example):
+    """length_mid (the plugin's) is the cylinder's length where the lever is perpendicular
+    to it, so the rod's whole stroke is spent where the moment arm is largest; the
+    actuator's control range is the stroke."""
+    model = mjplugin.load_model(example.MJCF)
+    hyd = mjplugin.hydraulics(example.MJCF)
+    for lever in _robot(example, model).levers.levers:
+        perpendicular = math.pi / 2 - lever.phase
+        x, arm = lever.rod(perpendicular)
+        assert abs(x) < 1e-6, lever  # the sites' 6 digits
+        assert abs(arm) == pytest.approx(lever.d * lever.r / lever.length_mid, rel=1e-6)
+        assert model.actuator(lever.joint).ctrlrange == pytest.approx([-hyd.stroke / 2, hyd.stroke / 2])
+
+
+@pytest.mark.parametrize("example", [hydraulic_leg, quadruped])
+def test_the_stand_keyframe_is_the_examples_stance(example):
+    """The keyframe the viewer loads is the examples' stance at its height (foot under the
+    hip) with the rods' commands that hold it: the joints' x_ref through the levers."""
+    model = mjplugin.load_model(example.MJCF, "fmu")
+    robot = _robot(example, model)
+    key = model.key("stand")
+    q = key.qpos[_joint_qpos(model, example.JOINTS)]
+    assert q == pytest.approx(_stance(example, robot, robot.h_stand), abs=1e-12)
+    assert key.ctrl == pytest.approx(robot.levers.rod(q)[0], abs=1e-7)
+
+
+@pytest.mark.parametrize("example", [hydraulic_leg, quadruped])
+def test_the_fmu_gets_the_plugins_hydraulics(example):
+    """Every plugin actuator's config is one robot.Hydraulics, which the FMU bank sets on
+    its instances: the FMU-driven robot is the plugin-driven one."""
+    hyd = mjplugin.hydraulics(example.MJCF)
+    configs = mjplugin.actuator_config(example.MJCF)
+    assert sorted(configs) == sorted(example.JOINTS)
+    for config in configs.values():
+        for key, value in hyd.fmu_values().items():
+            assert float(config[key]) == value, key
+
+
+def test_hydraulics_refuse_what_the_fmu_bank_would_not_set():
+    from ehsv.robot import Hydraulics
+
+    config = next(iter(mjplugin.actuator_config(hydraulic_leg.MJCF).values()))
+    with pytest.raises(ValueError, match="cylinder.beta"):
+        Hydraulics.from_config({**config, "cylinder.beta": "1e9"})
+    with pytest.raises(ValueError, match="control_mode"):
+        Hydraulics.from_config({**config, "control_mode": "current"})
 
 
 @pytest.mark.parametrize("example, height", [(hydraulic_leg, 0), (quadruped, 2)])
@@ -208,10 +304,11 @@ def test_the_stand_keyframe_stands(example, height):
     """What the viewer shows after Simulation > Key > Load: the robot holds its stance."""
     model = mjplugin.load_model(example.MJCF)
     data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key("stand").id)
+    key = model.key("stand")
+    mujoco.mj_resetDataKeyframe(model, data, key.id)
     for _ in range(2000):
         mujoco.mj_step(model, data)
-    assert data.qpos[height] == pytest.approx(example.H_STAND, abs=0.01)
+    assert data.qpos[height] == pytest.approx(key.qpos[height], abs=0.01)
 
 
 @pytest.mark.parametrize("timestep", [1e-3, 2e-3])
