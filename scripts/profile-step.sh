@@ -49,9 +49,10 @@ import collections, re, sys
 MARKER = sys.argv[3]  # step_profile::one_do_step, or capi_steps::communication_step
 PARTS = {  # name: substrings of a function's name; an instruction's own part is the innermost
     "integrator's evolve": ["::evolve"],
-    "driver/coil/valve propagation": ["::propagate", "taylor_propagate", "PropagatorCache::get"],
-    "mode choice": ["consistent_state", "::settle", "first_crossing"],
-    "cylinder Jacobian": ["cylinder_jacobian::linearise"],
+    "driver/coil/valve propagation": ["::propagate", "taylor_propagate", "PropagatorCache::get", "WholeSteps::"],
+    "mode choice": ["consistent_state", "::settle", "first_crossing", "slew_end"],
+    "cylinder linearisation": ["cylinder_jacobian::linearis", "Linearised::at", "friction_at"],
+    "cylinder step (solve, cuts)": ["lean_cylinder::advance_once", "Linearised::step"],
     "LU (factor, solve)": ["lu4::Lu4::factor", "lu4::Lu4::solve"],
     "cylinder right-hand side": ["cylinder::derivatives"],
     "outputs": ["outputs_at"],
