@@ -8,7 +8,7 @@ use ehsv_actuator::variables::vr;
 
 /// Driver enumeration values (the `driver` variable).
 const OPAMP_PI: i64 = 2;
-const HBRIDGE_PID: i64 = 4;
+pub const HBRIDGE_PID: i64 = 4;
 /// `control_mode` values.
 pub const CURRENT: i64 = 0;
 const FLOW: i64 = 1;
@@ -31,6 +31,9 @@ pub const OUTPUTS: [usize; 12] = [
     vr::V_PISTON,
     vr::F_HYDRAULIC,
 ];
+/// The column of u_driver in [`OUTPUTS`].
+pub const U_DRIVER_COLUMN: usize = 1;
+const _: () = assert!(OUTPUTS[U_DRIVER_COLUMN] == vr::U_DRIVER);
 pub const OUTPUT_NAMES: [&str; 12] = [
     "i_coil",
     "u_driver",

@@ -69,7 +69,10 @@ pub struct WholeModel {
 impl WholeModel {
     /// For `params`; refuses what the smooth form does not represent.
     pub fn new(params: &Params) -> Result<WholeModel, String> {
-        let c = Coefficients::new(params)?;
+        let mut c = Coefficients::new(params)?;
+        // The equations themselves, whatever the method: the H-bridge's every switching (the
+        // fixed-cost method's periods' means are its own approximation).
+        c.hbridge.pwm_mean = false;
         if valve::has_stops(&c) {
             return Err("the whole-model right-hand side has no valve travel stops".into());
         }

@@ -2,7 +2,9 @@
 //! C API: for checking that a change meant to leave the results alone (a faster path, a
 //! reorganisation) does, bit for bit.
 //!
-//!     output_digest [STEPS]       # default 5000 steps of 1e-4 s (the bench's 0.5 s)
+//! ```text
+//! output_digest [STEPS]       # default 5000 steps of 1e-4 s (the bench's 0.5 s)
+//! ```
 //!
 //! Prints one line per workload and method: the FNV-1a hash of the bits of every output
 //! (all of the table's outputs, read after every step of every instance, in order), and the
