@@ -11,7 +11,7 @@
 
 use ehsv_physics::bytes::ByteReader;
 use ehsv_physics::{Inputs, Physics};
-use ehsv_variables::variables::{inputs, vr, write_outputs, Causality, VARIABLES};
+use ehsv_variables::variables::{inputs, vr, write_outputs, Causality, N_VARIABLES, VARIABLES};
 
 use crate::config::Config;
 
@@ -49,10 +49,23 @@ impl Layout {
 
 /// Packs `bytes` into slots after the header (see the module's documentation).
 fn pack(bytes: &[u8], out: &mut [f64]) {
-    for (slot, chunk) in out.iter_mut().zip(bytes.chunks(BYTES_PER_SLOT)) {
+    let word = |chunk: &[u8]| {
         let mut word = [0u8; 8];
         word[..chunk.len()].copy_from_slice(chunk);
-        *slot = f64::from_bits(SLOT_BASE | u64::from_le_bytes(word));
+        f64::from_bits(SLOT_BASE | u64::from_le_bytes(word))
+    };
+    // Whole chunks by a copy of known length (every step packs the state: a copy of a
+    // length known only at run time costs a call each), then what is left.
+    let whole = bytes.chunks_exact(BYTES_PER_SLOT);
+    let rest = whole.remainder();
+    let mut slots = out.iter_mut();
+    // The chunks first: zip asks its first iterator first, so no slot is taken past them.
+    for (chunk, slot) in whole.zip(slots.by_ref()) {
+        let chunk: &[u8; BYTES_PER_SLOT] = chunk.try_into().expect("chunks_exact");
+        *slot = word(chunk);
+    }
+    if let (false, Some(slot)) = (rest.is_empty(), slots.next()) {
+        *slot = word(rest);
     }
 }
 
@@ -102,6 +115,10 @@ pub struct Actuator {
     pub layout: Layout,
     /// The state bytes' buffer (reused: no allocation in a step).
     bytes: Vec<u8>,
+    /// The outputs' value references in slot order, and a value array the outputs are
+    /// written into (kept: neither is built again at every step).
+    output_refs: Vec<usize>,
+    values: [f64; N_VARIABLES],
 }
 
 impl Actuator {
@@ -129,6 +146,8 @@ impl Actuator {
             pending: None,
             layout,
             bytes,
+            output_refs: output_indices().collect(),
+            values: [0.0; N_VARIABLES],
         };
         let mut slots = vec![0.0; layout.slots()];
         actuator.write_slots(actuator.start.rod_force_mean(), &mut slots);
@@ -147,12 +166,11 @@ impl Actuator {
 
     /// Writes the outputs (F_rod = `force`) and the state bytes of `self.physics`.
     fn write_slots(&mut self, force: f64, slots: &mut [f64]) {
-        let mut values = self.config.values;
         let mut outputs = self.physics.outputs();
         outputs.f_rod = force;
-        write_outputs(&outputs, &mut values);
-        for (slot, index) in slots.iter_mut().zip(output_indices()) {
-            *slot = values[index];
+        write_outputs(&outputs, &mut self.values);
+        for (slot, &index) in slots.iter_mut().zip(&self.output_refs) {
+            *slot = self.values[index];
         }
         self.bytes.clear();
         self.physics.write_bytes(&mut self.bytes);
