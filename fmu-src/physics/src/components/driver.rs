@@ -62,7 +62,6 @@ pub(crate) fn rail(c: &Coefficients, v_supply: f64) -> f64 {
     (v_supply - c.v_drop).max(0.0)
 }
 
-/// Row vector of u_lin = Kp (i_ref - i) + ui.
 /// The PI law's output at `z`, `u_lin_row(c) . z` written out: the same bits as that dot
 /// product (its two lanes hold `-Kp i + Kp i_ref` and `ui`), without building the row.
 #[inline]
@@ -70,6 +69,7 @@ pub(crate) fn u_lin(c: &Coefficients, z: &Vector) -> f64 {
     (c.kp * z[I_CMD] - c.kp * z[I]) + z[UI]
 }
 
+/// Row vector of u_lin = Kp (i_ref - i) + ui.
 pub(crate) fn u_lin_row(c: &Coefficients) -> Vector {
     let mut r = Vector::zeros();
     r[I_CMD] = c.kp;
@@ -147,6 +147,12 @@ pub(crate) fn linear_guard_values(c: &Coefficients, a: &Mat, z: &Vector) -> [f64
     [z[U] - z[RAIL], -z[U] - z[RAIL], du - c.slew_rate, -du - c.slew_rate]
 }
 
+/// How far (V) a PI driver's output may be from the law's value and still count as on it.
+#[inline]
+fn law_tolerance(vmax: f64) -> f64 {
+    1e-9 * (1.0 + vmax)
+}
+
 /// Whether [`consistent_mode`] puts a PI driver at `z`, on the linear mode's manifold
 /// (`z[U]` its law's value), in the linear mode, `a` that mode's dynamics: clear of the
 /// rails by more than its tolerance, and the output's rate within the slew rate. Its tests
@@ -154,7 +160,7 @@ pub(crate) fn linear_guard_values(c: &Coefficients, a: &Mat, z: &Vector) -> [f64
 #[inline]
 pub(crate) fn surely_linear(c: &Coefficients, a: &Mat, z: &Vector) -> bool {
     let (vmax, u_lin) = (z[RAIL], u_lin(c, z));
-    let tol = 1e-9 * (1.0 + vmax);
+    let tol = law_tolerance(vmax);
     let du = row_dot(a, U, z);
     // A NaN is not surely linear: the general way refuses it.
     u_lin < vmax - tol && u_lin > -vmax + tol && (-c.slew_rate..=c.slew_rate).contains(&du)
@@ -166,7 +172,7 @@ pub(crate) fn surely_linear(c: &Coefficients, a: &Mat, z: &Vector) -> bool {
 pub(crate) fn slew_towards_law(c: &Coefficients, z: &Vector) -> Option<Mode> {
     let vmax = z[RAIL];
     let target = u_lin(c, z).clamp(-vmax, vmax);
-    let tol = 1e-9 * (1.0 + vmax);
+    let tol = law_tolerance(vmax);
     if z[U] < target - tol {
         Some(Mode::SlewUp)
     } else if z[U] > target + tol {
@@ -196,7 +202,7 @@ pub(crate) fn consistent_mode<'a>(
     let e = z[I_CMD] - z[I];
     let u_lin = u_lin(c, z);
     let target = u_lin.clamp(-vmax, vmax);
-    let tol = 1e-9 * (1.0 + vmax);
+    let tol = law_tolerance(vmax);
     let high = if e > 0.0 { Mode::HighFrozen } else { Mode::HighIntegrating };
     let low = if e < 0.0 { Mode::LowFrozen } else { Mode::LowIntegrating };
     let rate_in = |mode: Mode| {
