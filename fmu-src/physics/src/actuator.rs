@@ -193,10 +193,7 @@ impl Actuator {
     /// `false`, nothing changed, for any other case.
     fn starts_a_slew(&mut self, i_cmd: f64) -> bool {
         let c = &self.params;
-        if self.mode != Mode::Linear
-            || !matches!(c.driver, DriverKind::OpampPi | DriverKind::Industrial)
-            || valve::has_stops(c)
-        {
+        if self.mode != Mode::Linear || !pi_driver_free_of_stops(c) {
             return false;
         }
         let mut z = self.z;
@@ -282,6 +279,12 @@ pub(crate) fn consistent_state(
     let mode = driver::consistent_mode(c, z, |m| &systems[m.index()].a);
     driver::project_onto(c, hbridge, z, mode);
     (mode, stops)
+}
+
+/// A PI driver (op-amp or industrial) on a valve without travel stops: where the shortcuts
+/// of the common step (a new command's slew, fixed_cost's linear lane) hold.
+pub(crate) fn pi_driver_free_of_stops(c: &Coefficients) -> bool {
+    matches!(c.driver, DriverKind::OpampPi | DriverKind::Industrial) && !valve::has_stops(c)
 }
 
 /// The system `mode` runs on: its own without travel stops, else the one with the stops

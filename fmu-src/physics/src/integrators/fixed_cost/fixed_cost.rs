@@ -19,7 +19,7 @@
 //!   stop's contact), the spool on the straight line
 //!   between its positions at the step's ends.
 
-use crate::actuator::{current_system, system_key, Actuator};
+use crate::actuator::{current_system, pi_driver_free_of_stops, system_key, Actuator};
 use crate::components::coefficients::Coefficients;
 use crate::components::driver;
 use crate::components::driver::Mode;
@@ -39,7 +39,6 @@ use crate::numerics::augmented_state::{I, RAIL, U};
 use crate::numerics::mode_systems::{Propagator, MAX_GUARDS};
 use crate::numerics::slew_end;
 use crate::params::ControlMode;
-use crate::params::DriverKind;
 
 /// Mode changes placed inside one internal step at most; more are decided at its end.
 const MAX_SWITCHES: usize = 3;
@@ -199,8 +198,7 @@ impl FixedCostIntegrator {
     /// a slew that is not brief, a state within the tolerance of a rail, a guard reached.
     fn linear_lane(&mut self, actuator: &mut Actuator, h: f64) -> Result<bool, String> {
         let c = &actuator.params;
-        if !matches!(c.driver, DriverKind::OpampPi | DriverKind::Industrial) || valve::has_stops(c)
-        {
+        if !pi_driver_free_of_stops(c) {
             return Ok(false);
         }
         let start = match actuator.mode {
