@@ -30,8 +30,8 @@ stage() {
 }
 
 scripts/setup-venv.sh || { echo "=== venv: FAILED, cannot run the Python tests"; exit 1; }
-# GL for MuJoCo's offscreen renderer (the robot examples' pictures; the tests run without)
-scripts/setup-gl.sh || echo "=== setup-gl: FAILED (MuJoCo pictures will be skipped)"
+# GL for MuJoCo's offscreen renderer (the robot examples' pictures) and Xvfb for its viewer (a test)
+scripts/setup-gl.sh || echo "=== setup-gl: FAILED (MuJoCo pictures and the viewer test will be skipped)"
 
 stage cargo-test cargo test --workspace --release
 stage build-fmu cargo run --release -p build-fmu
