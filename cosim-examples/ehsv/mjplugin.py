@@ -4,9 +4,12 @@ and tests run them with, on the plugin or, as the reference, on the FMU.
 
 * ``load_plugin()``: ``mujoco.mj_loadPluginLibrary`` on target/release/libehsv_mujoco.so
   (``cargo build --release -p ehsv-mujoco``; EHSV_MUJOCO_PLUGIN names another path),
-* ``outputs(model, data, name)``: one output of every plugin actuator (each actuator's
-  plugin_state slots hold the FMU's outputs in the table's order, ``contract.OUTPUTS``:
-  docs/mujoco.md),
+* ``sensor_outputs(model, data, name, actuators)``: one output of plugin actuators from
+  their sensors (``<sensor><plugin instance=.../>``: each gives the FMU's outputs in the
+  table's order, ``contract.OUTPUTS``; docs/mujoco.md), for a model that has them;
+  ``with_sensors(text)`` adds one to each plugin actuator of an MJCF text,
+* ``outputs(model, data, name, actuators)``: the same from the instances' plugin_state
+  slots (the low-level path, any model: the slots hold the outputs at ``data.time``),
 * ``actuator_config(path)``: each plugin actuator's ``<config>`` in an MJCF file;
   ``length_mid(path)`` and ``hydraulics(path)`` (the ``robot.Hydraulics`` the FMU bank
   gets: the same as the plugin's) from it,
@@ -96,17 +99,42 @@ def mjcf_text(
 
 
 def load_model(
-    path: Path, actuators: str = "plugin", timestep: float | None = None, config: dict | None = None
+    path: Path,
+    actuators: str = "plugin",
+    timestep: float | None = None,
+    config: dict | None = None,
+    sensors: bool = False,
 ):
     """The model of the MJCF file ``path``: ``actuators`` "plugin" (as written; the plugin
     is loaded) or "fmu" (each plugin actuator a general one, gain 1, on the same tendon:
     its force is its ctrl); ``timestep`` replaces the option's; ``config`` adds keys to
-    every plugin actuator (e.g. solver.method, substep)."""
+    every plugin actuator (e.g. solver.method, substep); ``sensors``: each plugin actuator
+    with its sensor (``with_sensors``)."""
     import mujoco
 
     if actuators == "plugin":
         load_plugin()
-    return mujoco.MjModel.from_xml_string(mjcf_text(path, actuators, timestep, config))
+    text = mjcf_text(path, actuators, timestep, config)
+    return mujoco.MjModel.from_xml_string(with_sensors(text) if sensors else text)
+
+
+def with_sensors(text: str) -> str:
+    """The MJCF ``text`` with each plugin actuator's config moved into a named instance
+    (a sensor names the instance it reads; an actuator's own config makes an unnamed one)
+    and a sensor ``<actuator>_hydraulics`` on each instance. The same simulation: a sensor
+    only reads."""
+    found = _PLUGIN_ACTUATOR.findall(text)
+    if not found or EXTENSION not in text:
+        raise ValueError("no plugin actuator with its config in the MJCF text")
+    instances = "".join(
+        f'\n    <instance name="{name}">{body.rstrip()}\n    </instance>' for name, _, _, body in found
+    )
+    sensors = "".join(f'\n    <plugin name="{name}_hydraulics" instance="{name}"/>' for name, *_ in found)
+    text = text.replace(
+        EXTENSION, f'  <extension><plugin plugin="{PLUGIN_NAME}">{instances}\n  </plugin></extension>'
+    )
+    text = _PLUGIN_ACTUATOR.sub(r'<plugin name="\1" instance="\1" tendon="\2"\3/>', text)
+    return text.replace("</actuator>", f"</actuator>\n  <sensor>{sensors}\n  </sensor>", 1)
 
 
 def actuator_config(path: Path) -> dict[str, dict[str, str]]:
@@ -132,10 +160,30 @@ def hydraulics(path: Path) -> Hydraulics:
 
 
 def outputs(model, data, name: str, actuators: Sequence[int]) -> np.ndarray:
-    """Output ``name`` (one of the FMU's outputs) of the plugin actuators ``actuators`` (ids)."""
+    """Output ``name`` (one of the FMU's outputs) of the plugin actuators ``actuators`` (ids),
+    from their plugin_state slots: the outputs at ``data.time``, in any model."""
     k = list(OUTPUTS).index(name)
     adr = [model.plugin_stateadr[model.actuator_plugin[a]] + k for a in actuators]
     return data.plugin_state[adr].copy()
+
+
+def sensor_outputs(model, data, name: str, actuators: Sequence[int]) -> np.ndarray:
+    """Output ``name`` of the plugin actuators ``actuators`` (ids) from their sensors (the
+    first plugin sensor on each one's instance): the outputs when the last forward pass ran,
+    so after ``mj_step`` those at the step's start, like every sensor of MuJoCo (after
+    ``mj_forward`` or ``mj_step1``: those at ``data.time``, as ``outputs``). A KeyError
+    names an actuator without a sensor."""
+    import mujoco
+
+    k = list(OUTPUTS).index(name)
+    plugin = int(mujoco.mjtSensor.mjSENS_PLUGIN)
+    adr = []
+    for a in actuators:
+        mine = (model.sensor_type == plugin) & (model.sensor_plugin == model.actuator_plugin[a])
+        if not mine.any():
+            raise KeyError(f"actuator {a} has no plugin sensor (with_sensors adds them)")
+        adr.append(model.sensor_adr[np.argmax(mine)] + k)
+    return data.sensordata[adr].copy()
 
 
 class MjcfCosim:

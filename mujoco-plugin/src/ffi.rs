@@ -11,6 +11,12 @@ use std::sync::OnceLock;
 pub const MUJOCO_VERSION: &str = "4.0.0";
 /// `mjPLUGIN_ACTUATOR`.
 pub const PLUGIN_ACTUATOR: c_int = 1;
+/// `mjPLUGIN_SENSOR`.
+pub const PLUGIN_SENSOR: c_int = 2;
+/// `mjSENS_PLUGIN` (mjtSensor): a sensor computed by a plugin.
+pub const SENS_PLUGIN: c_int = 47;
+/// `mjSTAGE_POS` (mjtStage).
+pub const STAGE_POS: c_int = 1;
 
 /// Opaque `mjModel` / `mjData`.
 #[repr(C)]
@@ -68,31 +74,43 @@ const _: () = {
 /// Byte offsets of the fields used, in MuJoCo 4.0.0 (x86_64 / aarch64 Linux, LP64).
 pub mod offsets {
     pub const MODEL_NACTUATOR: usize = 24; // mjtSize
+    pub const MODEL_NSENSOR: usize = 496; // mjtSize
     pub const MODEL_TIMESTEP: usize = 792; // opt.timestep, mjtNum
     pub const MODEL_ACTUATOR_CTRLADR: usize = 4800; // int*
     pub const MODEL_ACTUATOR_OUTADR: usize = 4824; // int*
     pub const MODEL_ACTUATOR_PLUGIN: usize = 4984; // int*
+    pub const MODEL_SENSOR_TYPE: usize = 5056; // int*
+    pub const MODEL_SENSOR_DIM: usize = 5120; // int*
+    pub const MODEL_SENSOR_ADR: usize = 5128; // int*
+    pub const MODEL_SENSOR_PLUGIN: usize = 5192; // int*
     pub const MODEL_PLUGIN_STATEADR: usize = 5208; // int*
     pub const MODEL_PLUGIN_STATENUM: usize = 5216; // int*
     pub const DATA_TIME: usize = 160648; // mjtNum
     pub const DATA_PLUGIN_STATE: usize = 160736; // mjtNum*
     pub const DATA_CTRL: usize = 160744; // mjtNum*
+    pub const DATA_SENSORDATA: usize = 160816; // mjtNum*
     pub const DATA_PLUGIN_DATA: usize = 160840; // uintptr_t*
     pub const DATA_ACTUATOR_LENGTH: usize = 161152; // mjtNum*
     pub const DATA_ACTUATOR_VELOCITY: usize = 161288; // mjtNum*
     pub const DATA_ACTUATOR_FORCE: usize = 161416; // mjtNum*
     /// Every (C expression, offset) above, for the ABI test.
-    pub const ALL: [(&str, usize); 14] = [
+    pub const ALL: [(&str, usize); 20] = [
         ("offsetof(mjModel, nactuator)", MODEL_NACTUATOR),
+        ("offsetof(mjModel, nsensor)", MODEL_NSENSOR),
         ("offsetof(mjModel, opt.timestep)", MODEL_TIMESTEP),
         ("offsetof(mjModel, actuator_ctrladr)", MODEL_ACTUATOR_CTRLADR),
         ("offsetof(mjModel, actuator_outadr)", MODEL_ACTUATOR_OUTADR),
         ("offsetof(mjModel, actuator_plugin)", MODEL_ACTUATOR_PLUGIN),
+        ("offsetof(mjModel, sensor_type)", MODEL_SENSOR_TYPE),
+        ("offsetof(mjModel, sensor_dim)", MODEL_SENSOR_DIM),
+        ("offsetof(mjModel, sensor_adr)", MODEL_SENSOR_ADR),
+        ("offsetof(mjModel, sensor_plugin)", MODEL_SENSOR_PLUGIN),
         ("offsetof(mjModel, plugin_stateadr)", MODEL_PLUGIN_STATEADR),
         ("offsetof(mjModel, plugin_statenum)", MODEL_PLUGIN_STATENUM),
         ("offsetof(mjData, time)", DATA_TIME),
         ("offsetof(mjData, plugin_state)", DATA_PLUGIN_STATE),
         ("offsetof(mjData, ctrl)", DATA_CTRL),
+        ("offsetof(mjData, sensordata)", DATA_SENSORDATA),
         ("offsetof(mjData, plugin_data)", DATA_PLUGIN_DATA),
         ("offsetof(mjData, actuator_length)", DATA_ACTUATOR_LENGTH),
         ("offsetof(mjData, actuator_velocity)", DATA_ACTUATOR_VELOCITY),

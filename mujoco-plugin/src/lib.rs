@@ -1,10 +1,12 @@
-//! EhsvActuator as a MuJoCo engine plugin: `ehsv.actuator`, with the actuator capability.
+//! EhsvActuator as a MuJoCo engine plugin: `ehsv.actuator`, with the actuator and sensor
+//! capabilities.
 //! `mujoco.mj_loadPluginLibrary("target/release/libehsv_mujoco.so")` registers it (a
 //! constructor in `.init_array` calls libmujoco's `mjp_registerPlugin`). Each plugin
 //! actuator of an MJCF is one EhsvActuator with the motion port; see docs/mujoco.md.
 //!
 //! * [`config`]: config keys (the FMU's variable names), defaults, refusals.
 //! * [`actuator`]: one actuator, its state in mjData's `plugin_state`, sub-stepping.
+//! * [`sensor`]: the sensors on an instance, its outputs copied from `plugin_state`.
 //! * [`ffi`]: the part of MuJoCo 4.0.0's ABI used (checked against the wheel's headers).
 //!
 //! Every callback catches panics: nothing unwinds into MuJoCo.
@@ -12,6 +14,7 @@
 pub mod actuator;
 pub mod config;
 pub mod ffi;
+pub mod sensor;
 
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -147,9 +150,17 @@ unsafe extern "C" fn reset(m: *const MjModel, state: *mut f64, data: *mut c_void
     })
 }
 
-unsafe extern "C" fn compute(m: *const MjModel, d: *mut MjData, instance: c_int, _bit: c_int) {
+/// MuJoCo's `compute`, called once per capability: the actuator's force, or its sensors.
+unsafe extern "C" fn compute(m: *const MjModel, d: *mut MjData, instance: c_int, bit: c_int) {
     guard((), || {
         let Some(inst) = (*instance_ptr(d, instance)).as_mut() else { return };
+        if bit & ffi::PLUGIN_SENSOR != 0 {
+            let outputs = &slots(m, d, instance)[..inst.actuator.layout.outputs];
+            sensor::write(m, d, instance, outputs);
+        }
+        if bit & ffi::PLUGIN_ACTUATOR == 0 {
+            return;
+        }
         let host = HostStep {
             time: field(d.cast(), o::DATA_TIME),
             timestep: field(m.cast(), o::MODEL_TIMESTEP),
@@ -201,10 +212,12 @@ fn register() {
         name: PLUGIN_NAME.as_ptr(),
         nattribute: names.len() as c_int,
         attributes: names.as_ptr(),
-        capabilityflags: ffi::PLUGIN_ACTUATOR,
-        needstage: 0,
+        capabilityflags: ffi::PLUGIN_ACTUATOR | ffi::PLUGIN_SENSOR,
+        // The sensors copy plugin_state, which no stage of a forward pass changes (only
+        // advance does): the position stage fills them as early as any, in mj_step1 too.
+        needstage: ffi::STAGE_POS,
         nstate: Some(nstate),
-        nsensordata: None,
+        nsensordata: Some(sensor::nsensordata),
         init: Some(init),
         destroy: Some(destroy),
         copy: None,

@@ -51,6 +51,9 @@ fn offsets_and_plugin_struct_match_the_wheels_headers() {
     checks.push(("sizeof(mjtNum)".into(), 8));
     checks.push(("sizeof(mjtSize)".into(), 8));
     checks.push(("mjPLUGIN_ACTUATOR".into(), ehsv_mujoco::ffi::PLUGIN_ACTUATOR as usize));
+    checks.push(("mjPLUGIN_SENSOR".into(), ehsv_mujoco::ffi::PLUGIN_SENSOR as usize));
+    checks.push(("mjSENS_PLUGIN".into(), ehsv_mujoco::ffi::SENS_PLUGIN as usize));
+    checks.push(("mjSTAGE_POS".into(), ehsv_mujoco::ffi::STAGE_POS as usize));
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR"));
     let mut program = String::from(
         "#include <stdio.h>\n#include <stddef.h>\n#include <string.h>\n#include <mujoco/mujoco.h>\n\

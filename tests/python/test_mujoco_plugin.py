@@ -10,6 +10,9 @@
 * mj_getState / mj_setState mid-run restores the hydraulic state bit for bit (into the
   same mjData and a fresh one), and so do mj_copyData and mj_resetData,
 * a mujoco.rollout on two threads equals a serial run, bit for bit,
+* the plugin's sensors give each actuator's outputs, bit for bit those in plugin_state,
+  change no simulated number, come out of a rollout as from a serial run, and a sensor
+  on an instance without an actuator is refused with a message,
 * a bad configuration is refused with a message that names the key,
 * the leg stands at each documented host timestep (docs/mujoco.md).
 """
@@ -46,8 +49,8 @@ def _bits(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
 
 
-def _leg(timestep=None):
-    model = mjplugin.load_model(hydraulic_leg.MJCF, "plugin", timestep)
+def _leg(timestep=None, sensors=False):
+    model = mjplugin.load_model(hydraulic_leg.MJCF, "plugin", timestep, sensors=sensors)
     data = mujoco.MjData(model)
     leg = hydraulic_leg.Leg.of(model)
     q0 = leg.joint_command(leg.h_stand)
@@ -152,6 +155,94 @@ def test_rollout_equals_serial_run():
             serial.ctrl[:] = ctrl[b, k]
             mujoco.mj_step(model, serial)
             assert np.array_equal(_bits(states[b, k]), _bits(_state(model, serial))), (b, k)
+
+
+def _output_slots(model, data, a: int) -> np.ndarray:
+    """Slots 0-15 (the outputs) of actuator ``a``'s instance."""
+    adr = model.plugin_stateadr[model.actuator_plugin[a]]
+    return data.plugin_state[adr : adr + len(mjplugin.OUTPUTS)].copy()
+
+
+def _quadruped(sensors=False):
+    model = mjplugin.load_model(quadruped.MJCF, sensors=sensors)
+    data = mujoco.MjData(model)
+    quad = quadruped.Quadruped.of(model)
+    quadruped.initial_pose(model, data, quadruped.Plan.short(quad), quad)
+    return model, data
+
+
+def test_sensors_are_the_outputs_in_plugin_state():
+    """Each sensor is its instance's slots 0-15: after mj_step those at the step's start (a
+    sensor is computed in the forward pass before the step, as MuJoCo's own), after
+    mj_forward those at data.time; the pressures and forces of a loaded, moving leg."""
+    names = list(mjplugin.OUTPUTS)
+    model, data = _leg(sensors=True)
+    assert model.nsensordata == model.nu * len(names)
+    cfg = mjplugin.actuator_config(hydraulic_leg.MJCF)["knee"]
+    floor, relief = -90000.0, float(cfg["relief.p_crack"]) + float(cfg["relief.dp_override"])
+    for k in range(400):
+        before = [_output_slots(model, data, a) for a in range(model.nu)]
+        data.ctrl[:] = _x_ref(k)
+        mujoco.mj_step(model, data)
+        for a, name in enumerate(("hip", "knee")):
+            assert np.array_equal(_bits(data.sensor(f"{name}_hydraulics").data), _bits(before[a])), (k, a)
+    mujoco.mj_forward(model, data)
+    for a, name in enumerate(("hip", "knee")):
+        sensed = dict(zip(names, data.sensor(f"{name}_hydraulics").data, strict=True))
+        assert np.array_equal(_bits(list(sensed.values())), _bits(_output_slots(model, data, a)))
+        for p in ("p_A", "p_B"):
+            assert floor < sensed[p] < relief, (name, p, sensed[p])
+        assert abs(sensed["F_rod"]) > 10.0 and sensed["v_piston"] != 0.0, sensed
+    p_a = mjplugin.sensor_outputs(model, data, "p_A", range(model.nu))
+    assert np.array_equal(_bits(p_a), _bits(mjplugin.outputs(model, data, "p_A", range(model.nu))))
+
+
+@pytest.mark.parametrize("example", [hydraulic_leg, quadruped])
+def test_sensors_change_no_simulated_number(example):
+    runs = []
+    for sensors in (False, True):
+        model, data = _leg(sensors=sensors) if example is hydraulic_leg else _quadruped(sensors)
+        rng = np.random.default_rng(2)
+        ctrl = rng.uniform(-3e-3, 3e-3, model.nu)
+        for k in range(300):
+            data.ctrl[:] = ctrl * np.sin(2 * np.pi * 5.0 * k * 1e-4)
+            mujoco.mj_step(model, data)
+        assert model.nsensor == (model.nu if sensors else 0)
+        runs.append([data.qpos, data.qvel, data.actuator_force, data.plugin_state, [data.time]])
+    for a, b in zip(*runs, strict=True):
+        assert np.array_equal(_bits(a), _bits(b))
+
+
+def test_rollout_gives_the_sensors_of_a_serial_run():
+    from mujoco import rollout
+
+    model, data = _quadruped(sensors=True)
+    x0 = _state(model, data)
+    nstep = 100
+    rng = np.random.default_rng(3)
+    ctrl = np.stack([np.tile(rng.uniform(-3e-3, 3e-3, model.nu), (nstep, 1)) for _ in range(2)])
+    _, sensordata = rollout.rollout(model, [mujoco.MjData(model) for _ in range(2)], x0, ctrl, nstep=nstep)
+    for b in range(2):
+        serial = mujoco.MjData(model)
+        mujoco.mj_setState(model, serial, x0, FULL)
+        for k in range(nstep):
+            serial.ctrl[:] = ctrl[b, k]
+            mujoco.mj_step(model, serial)
+            assert np.array_equal(_bits(sensordata[b, k]), _bits(serial.sensordata)), (b, k)
+    assert np.count_nonzero(sensordata[:, -1]) > 0
+
+
+def test_a_sensor_on_an_instance_without_actuator_is_refused():
+    """MuJoCo compiles the plugin's init for every instance: one that drives no actuator
+    is refused with a message (nothing of it is read)."""
+    xml = """<mujoco><extension><plugin plugin="ehsv.actuator">
+    <instance name="lone"><config key="control_mode" value="position"/></instance>
+    </plugin></extension>
+    <worldbody><body><joint type="slide"/><geom size=".1" mass="1"/></body></worldbody>
+    <sensor><plugin name="lone_hydraulics" instance="lone"/></sensor></mujoco>"""
+    with pytest.raises(ValueError, match="drives 0 actuators"):
+        model = mujoco.MjModel.from_xml_string(xml)
+        mujoco.MjData(model)
 
 
 MINIMAL = """<mujoco><option timestep="1e-4"/><extension><plugin plugin="ehsv.actuator"/></extension>
