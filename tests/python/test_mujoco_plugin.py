@@ -136,18 +136,26 @@ def test_copy_and_reset_carry_the_hydraulic_state():
     assert not np.array_equal(_bits(copy.plugin_state), start)
 
 
-def test_rollout_equals_serial_run():
-    from mujoco import rollout
-
-    model = mjplugin.load_model(quadruped.MJCF)
+def _quadruped(sensors=False):
+    model = mjplugin.load_model(quadruped.MJCF, sensors=sensors)
     data = mujoco.MjData(model)
     quad = quadruped.Quadruped.of(model)
     quadruped.initial_pose(model, data, quadruped.Plan.short(quad), quad)
+    return model, data
+
+
+def test_rollout_equals_serial_run():
+    """Two threads of mujoco.rollout give a serial run's states and sensors bit for bit."""
+    from mujoco import rollout
+
+    model, data = _quadruped(sensors=True)
     x0 = _state(model, data)
     nstep, nu = 150, model.nu
     rng = np.random.default_rng(1)
     ctrl = np.stack([np.tile(rng.uniform(-3e-3, 3e-3, nu), (nstep, 1)) for _ in range(3)])
-    states, _ = rollout.rollout(model, [mujoco.MjData(model) for _ in range(2)], x0, ctrl, nstep=nstep)
+    states, sensordata = rollout.rollout(
+        model, [mujoco.MjData(model) for _ in range(2)], x0, ctrl, nstep=nstep
+    )
     for b in range(3):
         serial = mujoco.MjData(model)
         mujoco.mj_setState(model, serial, x0, FULL)
@@ -155,20 +163,14 @@ def test_rollout_equals_serial_run():
             serial.ctrl[:] = ctrl[b, k]
             mujoco.mj_step(model, serial)
             assert np.array_equal(_bits(states[b, k]), _bits(_state(model, serial))), (b, k)
+            assert np.array_equal(_bits(sensordata[b, k]), _bits(serial.sensordata)), (b, k)
+    assert np.count_nonzero(sensordata[:, -1]) > 0
 
 
 def _output_slots(model, data, a: int) -> np.ndarray:
     """Slots 0-15 (the outputs) of actuator ``a``'s instance."""
     adr = model.plugin_stateadr[model.actuator_plugin[a]]
     return data.plugin_state[adr : adr + len(mjplugin.OUTPUTS)].copy()
-
-
-def _quadruped(sensors=False):
-    model = mjplugin.load_model(quadruped.MJCF, sensors=sensors)
-    data = mujoco.MjData(model)
-    quad = quadruped.Quadruped.of(model)
-    quadruped.initial_pose(model, data, quadruped.Plan.short(quad), quad)
-    return model, data
 
 
 def test_sensors_are_the_outputs_in_plugin_state():
@@ -211,25 +213,6 @@ def test_sensors_change_no_simulated_number(example):
         runs.append([data.qpos, data.qvel, data.actuator_force, data.plugin_state, [data.time]])
     for a, b in zip(*runs, strict=True):
         assert np.array_equal(_bits(a), _bits(b))
-
-
-def test_rollout_gives_the_sensors_of_a_serial_run():
-    from mujoco import rollout
-
-    model, data = _quadruped(sensors=True)
-    x0 = _state(model, data)
-    nstep = 100
-    rng = np.random.default_rng(3)
-    ctrl = np.stack([np.tile(rng.uniform(-3e-3, 3e-3, model.nu), (nstep, 1)) for _ in range(2)])
-    _, sensordata = rollout.rollout(model, [mujoco.MjData(model) for _ in range(2)], x0, ctrl, nstep=nstep)
-    for b in range(2):
-        serial = mujoco.MjData(model)
-        mujoco.mj_setState(model, serial, x0, FULL)
-        for k in range(nstep):
-            serial.ctrl[:] = ctrl[b, k]
-            mujoco.mj_step(model, serial)
-            assert np.array_equal(_bits(sensordata[b, k]), _bits(serial.sensordata)), (b, k)
-    assert np.count_nonzero(sensordata[:, -1]) > 0
 
 
 def test_a_sensor_on_an_instance_without_actuator_is_refused():
