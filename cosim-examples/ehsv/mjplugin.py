@@ -6,16 +6,18 @@ and tests run them with, on the plugin or, as the reference, on the FMU.
   (``cargo build --release -p ehsv-mujoco``; EHSV_MUJOCO_PLUGIN names another path),
 * ``sensor_outputs(model, data, name, actuators)``: one output of plugin actuators from
   their sensors (``<sensor><plugin instance=.../>``: each gives the FMU's outputs in the
-  table's order, ``contract.OUTPUTS``; docs/mujoco.md), for a model that has them;
-  ``with_sensors(text)`` adds one to each plugin actuator of an MJCF text,
+  table's order, ``contract.OUTPUTS``; docs/mujoco.md), for a model that has them (the
+  robots' files do),
 * ``outputs(model, data, name, actuators)``: the same from the instances' plugin_state
   slots (the low-level path, any model: the slots hold the outputs at ``data.time``),
-* ``actuator_config(path)``: each plugin actuator's ``<config>`` in an MJCF file;
+* ``actuator_config(path)``: each plugin actuator's ``<config>`` in an MJCF file (its
+  named instance's);
   ``length_mid(path)`` and ``hydraulics(path)`` (the ``robot.Hydraulics`` the FMU bank
   gets: the same as the plugin's) from it,
-* ``load_model(path, actuators, timestep, config)``: an MJCF file as written (plugin
-  actuators) or with each plugin actuator turned into a ``general`` force actuator on the
-  same tendon (``actuators="fmu"``: the FMU gives the force through ``ctrl``),
+* ``load_model(path, actuators, timestep, config, sensors)``: an MJCF file as written
+  (plugin actuators and their sensors) or with each plugin actuator turned into a
+  ``general`` force actuator on the same tendon (``actuators="fmu"``: the FMU gives the
+  force through ``ctrl``),
 * ``MjcfCosim``: the loop, the same for both: mj_step1 -> the command (x_ref) -> with the
   FMU: x_rod = actuator_length - length_mid, v_rod = actuator_velocity, doStep, ctrl =
   F_rod; with the plugin: ctrl = x_ref -> mj_step2 (the plugin steps inside it).
@@ -39,7 +41,6 @@ from .robot import MONITORED, Hydraulics, LeverSet, Record, Timing
 
 ROOT = Path(__file__).resolve().parents[2]
 MJCF_DIR = ROOT / "cosim-examples" / "mjcf"
-PLUGIN_NAME = "ehsv.actuator"
 _loaded: list[str] = []
 
 
@@ -70,11 +71,13 @@ def load_plugin() -> Path:
     return p
 
 
-EXTENSION = f'  <extension><plugin plugin="{PLUGIN_NAME}"/></extension>'
-_PLUGIN_ACTUATOR = re.compile(
-    r'<plugin name="([^"]+)" plugin="' + re.escape(PLUGIN_NAME) + r'" tendon="([^"]+)"([^>]*)>(.*?)</plugin>',
-    re.S,
-)
+#: the robots' MJCF form (cosim-examples/mjcf/): each plugin actuator's config in a named
+#: instance of the plugin's ``<extension>`` entry, the actuator and a ``<sensor>`` naming it
+_EXTENSION = re.compile(r"\n  <extension>.*?</extension>", re.S)
+_INSTANCE = re.compile(r'<instance name="([^"]+)">(.*?)</instance>', re.S)
+_PLUGIN_ACTUATOR = re.compile(r'<plugin name="([^"]+)" instance="([^"]+)" tendon="([^"]+)"([^>]*)/>')
+#: the files' sensor section holds the plugin sensors alone
+_SENSORS = re.compile(r"\n  <sensor>.*?</sensor>", re.S)
 
 
 def mjcf_text(
@@ -85,16 +88,13 @@ def mjcf_text(
     if timestep is not None:
         text = re.sub(r'(<option[^>]*timestep=")[^"]*"', rf"\g<1>{timestep!r}" + '"', text, count=1)
     if actuators == "fmu":
-        text = text.replace(EXTENSION + "\n", "")
-        text = _PLUGIN_ACTUATOR.sub(r'<general name="\1" tendon="\2" gainprm="1" ctrllimited="false"/>', text)
+        text = _SENSORS.sub("", _EXTENSION.sub("", text, count=1), count=1)
+        text = _PLUGIN_ACTUATOR.sub(r'<general name="\1" tendon="\3" gainprm="1" ctrllimited="false"/>', text)
     elif config:
         extra = "".join(f'\n        <config key="{k}" value="{v}"/>' for k, v in config.items())
-
-        def add(m):
-            head = f'<plugin name="{m[1]}" plugin="{PLUGIN_NAME}" tendon="{m[2]}"{m[3]}>'
-            return f"{head}{m[4].rstrip()}{extra}\n    </plugin>"
-
-        text = _PLUGIN_ACTUATOR.sub(add, text)
+        text = _INSTANCE.sub(
+            lambda m: f'<instance name="{m[1]}">{m[2].rstrip()}{extra}\n      </instance>', text
+        )
     return text
 
 
@@ -103,46 +103,30 @@ def load_model(
     actuators: str = "plugin",
     timestep: float | None = None,
     config: dict | None = None,
-    sensors: bool = False,
+    sensors: bool = True,
 ):
     """The model of the MJCF file ``path``: ``actuators`` "plugin" (as written; the plugin
     is loaded) or "fmu" (each plugin actuator a general one, gain 1, on the same tendon:
-    its force is its ctrl); ``timestep`` replaces the option's; ``config`` adds keys to
-    every plugin actuator (e.g. solver.method, substep); ``sensors``: each plugin actuator
-    with its sensor (``with_sensors``)."""
+    its force is its ctrl; no plugin, so no sensors); ``timestep`` replaces the option's;
+    ``config`` adds keys to every plugin instance (e.g. solver.method, substep);
+    ``sensors`` False leaves the plugin sensors out."""
     import mujoco
 
     if actuators == "plugin":
         load_plugin()
     text = mjcf_text(path, actuators, timestep, config)
-    return mujoco.MjModel.from_xml_string(with_sensors(text) if sensors else text)
-
-
-def with_sensors(text: str) -> str:
-    """The MJCF ``text`` with each plugin actuator's config moved into a named instance
-    (a sensor names the instance it reads; an actuator's own config makes an unnamed one)
-    and a sensor ``<actuator>_hydraulics`` on each instance. The same simulation: a sensor
-    only reads."""
-    found = _PLUGIN_ACTUATOR.findall(text)
-    if not found or EXTENSION not in text:
-        raise ValueError("no plugin actuator with its config in the MJCF text")
-    instances = "".join(
-        f'\n    <instance name="{name}">{body.rstrip()}\n    </instance>' for name, _, _, body in found
-    )
-    sensors = "".join(f'\n    <plugin name="{name}_hydraulics" instance="{name}"/>' for name, *_ in found)
-    text = text.replace(
-        EXTENSION, f'  <extension><plugin plugin="{PLUGIN_NAME}">{instances}\n  </plugin></extension>'
-    )
-    text = _PLUGIN_ACTUATOR.sub(r'<plugin name="\1" instance="\1" tendon="\2"\3/>', text)
-    return text.replace("</actuator>", f"</actuator>\n  <sensor>{sensors}\n  </sensor>", 1)
+    return mujoco.MjModel.from_xml_string(text if sensors else _SENSORS.sub("", text, count=1))
 
 
 def actuator_config(path: Path) -> dict[str, dict[str, str]]:
-    """Each plugin actuator's config keys and values (text) in the file, by actuator name."""
-    return {
+    """Each plugin actuator's config keys and values (text) in the file (its instance's),
+    by actuator name."""
+    text = Path(path).read_text()
+    configs = {
         name: dict(re.findall(r'<config key="([^"]+)" value="([^"]*)"/>', body))
-        for name, _, _, body in _PLUGIN_ACTUATOR.findall(Path(path).read_text())
+        for name, body in _INSTANCE.findall(text)
     }
+    return {name: configs[instance] for name, instance, *_ in _PLUGIN_ACTUATOR.findall(text)}
 
 
 def length_mid(path: Path) -> dict[str, float]:
@@ -181,7 +165,7 @@ def sensor_outputs(model, data, name: str, actuators: Sequence[int]) -> np.ndarr
     for a in actuators:
         mine = (model.sensor_type == plugin) & (model.sensor_plugin == model.actuator_plugin[a])
         if not mine.any():
-            raise KeyError(f"actuator {a} has no plugin sensor (with_sensors adds them)")
+            raise KeyError(f"actuator {a} has no plugin sensor")
         adr.append(model.sensor_adr[np.argmax(mine)] + k)
     return data.sensordata[adr].copy()
 

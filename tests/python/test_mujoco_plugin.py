@@ -49,7 +49,7 @@ def _bits(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64).view(np.uint64)
 
 
-def _leg(timestep=None, sensors=False):
+def _leg(timestep=None, sensors=True):
     model = mjplugin.load_model(hydraulic_leg.MJCF, "plugin", timestep, sensors=sensors)
     data = mujoco.MjData(model)
     leg = hydraulic_leg.Leg.of(model)
@@ -136,7 +136,7 @@ def test_copy_and_reset_carry_the_hydraulic_state():
     assert not np.array_equal(_bits(copy.plugin_state), start)
 
 
-def _quadruped(sensors=False):
+def _quadruped(sensors=True):
     model = mjplugin.load_model(quadruped.MJCF, sensors=sensors)
     data = mujoco.MjData(model)
     quad = quadruped.Quadruped.of(model)
@@ -148,7 +148,7 @@ def test_rollout_equals_serial_run():
     """Two threads of mujoco.rollout give a serial run's states and sensors bit for bit."""
     from mujoco import rollout
 
-    model, data = _quadruped(sensors=True)
+    model, data = _quadruped()
     x0 = _state(model, data)
     nstep, nu = 150, model.nu
     rng = np.random.default_rng(1)
@@ -178,7 +178,7 @@ def test_sensors_are_the_outputs_in_plugin_state():
     sensor is computed in the forward pass before the step, as MuJoCo's own), after
     mj_forward those at data.time; the pressures and forces of a loaded, moving leg."""
     names = list(mjplugin.OUTPUTS)
-    model, data = _leg(sensors=True)
+    model, data = _leg()
     assert model.nsensordata == model.nu * len(names)
     cfg = mjplugin.actuator_config(hydraulic_leg.MJCF)["knee"]
     floor, relief = -90000.0, float(cfg["relief.p_crack"]) + float(cfg["relief.dp_override"])
