@@ -157,19 +157,7 @@ pub(crate) fn motion_row(
     load: f64,
     friction: (f64, f64),
 ) -> MotionRow {
-    let (acceleration, d_v) = acceleration_and_row(params, y, load, friction);
-    MotionRow { acceleration, d_v, friction }
-}
-
-/// [`motion_row`]'s acceleration and row.
-#[inline(always)]
-fn acceleration_and_row(
-    params: &CylinderParams,
-    y: &Vec4,
-    load: f64,
-    friction: (f64, f64),
-) -> (f64, Vec4) {
-    match params.port {
+    let (acceleration, d_v) = match params.port {
         RodPort::Force => {
             let state = CylinderState::from_array(y);
             let [force, dforce_dx, dforce_dv] = net_force_with(params, &state, load, friction);
@@ -181,7 +169,8 @@ fn acceleration_and_row(
         }
         // The host moves the rod at the acceleration `load`: nothing here acts back on it.
         RodPort::Motion => (load, [0.0; N_STATES]),
-    }
+    };
+    MotionRow { acceleration, d_v, friction }
 }
 
 /// Friction's creep band, in `cylinder.v_friction_smooth`: past this many its `tanh` is 1 to
@@ -191,11 +180,11 @@ const CREEP_BAND: f64 = 20.0;
 /// For a fixed step of `h` from velocity `v` that starts in the friction's creep band or
 /// crosses or reaches it (`v` through zero: starting from rest, a reversal), the friction's
 /// slope in the rod's row `motion` replaced by its secant from `v` to the explicit
-/// prediction `v + h v'`. The band is 1e-4 m/s wide:
-/// its tangent (3e5 N s/m at rest) holds a Rosenbrock step's velocity as a damper would,
-/// though the piston leaves the band in a microsecond (a step from rest lost a sixth of its
-/// velocity); the secant is the damping the step actually crosses. Outside the band the
-/// tangent stays, and with it the method's order.
+/// prediction `v + h v'`. The band is 1e-4 m/s wide: its tangent (3e5 N s/m at rest) holds
+/// a Rosenbrock step's velocity as a damper would, though the piston leaves the band in a
+/// microsecond (a step from rest lost a sixth of its velocity); the secant is the damping
+/// the step actually crosses. Outside the band the tangent stays, and with it the method's
+/// order.
 pub(crate) fn secant_friction(params: &CylinderParams, v: f64, h: f64, motion: &mut MotionRow) {
     if params.port == RodPort::Motion {
         return;
