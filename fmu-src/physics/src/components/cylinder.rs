@@ -39,9 +39,10 @@
 //!   holds (a cross-port valve bounds only `p_A - p_B`, and from the rod side it cannot fill
 //!   the larger cap side anyway). `p_crack = 0` removes them. The supply must stay below
 //!   the setting (checked), so they are shut in normal operation.
-//! * **Chamber volumes** are clamped at [`MIN_VOLUME_FRACTION`] of the dead volume so the
-//!   equations stay finite, but a state that reaches the clamp (the piston through the end
-//!   of the cylinder) is refused ([`check_inside`]), never integrated on.
+//! * **Chamber volumes** are clamped at
+//!   [`MIN_VOLUME_FRACTION`](super::cylinder_params::MIN_VOLUME_FRACTION) of the dead volume
+//!   so the equations stay finite, but a state that reaches the clamp (the piston through the
+//!   end of the cylinder) is refused ([`check_inside`]), never integrated on.
 //! * **Equilibrium start**: with `x_s = 0` both chambers are sealed, so any pressure pair on the
 //!   force balance is an equilibrium. We take the one an (infinitesimally) underlapped real valve
 //!   would settle to at null: its four metering edges balance leak flows when
@@ -58,7 +59,7 @@ use crate::numerics::root_finding::newton_in_bracket;
 use crate::params::{Outputs, RodPort};
 
 pub(crate) use crate::components::cylinder_params::{
-    CylinderParams, CylinderState, Mat4, Vec4, MIN_VOLUME_FRACTION, N_STATES, PA, PB, V, X,
+    CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V, X,
 };
 
 /// Rest state at mid-stroke for a centred valve: `p_A + p_B = p_S + p_T` (the null of an
@@ -81,7 +82,7 @@ pub(crate) fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) ->
 /// clamped equations no longer describe anything physical.
 pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Result<(), String> {
     let (volume_a, volume_b) = free_volumes(params, state.x);
-    let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
+    let min_volume = params.min_volume();
     for (volume, chamber, end) in [(volume_a, "A", "-"), (volume_b, "B", "+")] {
         // A NaN position is refused too.
         if volume.is_nan() || volume < min_volume {
@@ -109,7 +110,8 @@ pub(crate) fn derivatives(
     p_supply: f64,
     load: f64,
 ) -> [f64; 4] {
-    let [dp_a, dp_b] = chamber_terms(params, state, x_s, p_supply).pressure_rates;
+    let [a, b] = chamber_terms(params, state, x_s, p_supply);
+    let [dp_a, dp_b] = [a.pressure_rate, b.pressure_rate];
     [dp_a, dp_b, state.v, acceleration(params, state, load)]
 }
 
@@ -161,7 +163,7 @@ pub(crate) fn next_contact_switch(
     (f0, jac, f_t): (&Vec4, &Mat4, &Vec4),
     span: f64,
 ) -> Option<f64> {
-    let half = 0.5 * params.stroke;
+    let half = params.half_stroke();
     let (x, v, a) = (y[X], y[V], f0[V]);
     let jerk = (0..N_STATES).map(|j| jac[V][j] * f0[j]).sum::<f64>() + f_t[V];
     let (k, c) = (params.k_endstop, params.c_endstop);
@@ -203,7 +205,7 @@ pub(crate) fn next_cavitation_switch(
     (f0, jac, f_t): (&Vec4, &Mat4, &Vec4),
     span: f64,
 ) -> Option<f64> {
-    let band_top = params.p_cavitation + params.dp_cavitation_band;
+    let band_top = params.cavitation_band_top();
     let mut first: Option<f64> = None;
     for k in [PA, PB] {
         if y[k] >= band_top {

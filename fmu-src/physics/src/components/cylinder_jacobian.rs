@@ -4,7 +4,8 @@
 
 use crate::components::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V};
 use crate::components::cylinder_terms::{
-    at_least, cavitation_factor, chamber_terms, friction, net_force_with,
+    at_least, cavitation_factor, chamber_a, chamber_b, chamber_volumes, friction, net_force_with,
+    port_flows, Chamber,
 };
 use crate::params::RodPort;
 
@@ -22,9 +23,6 @@ pub(crate) struct Linearisation {
     pub d_v: Vec4,
     /// `[d p_A'/dx_s, d p_B'/dx_s]`.
     pub d_xs: [f64; 2],
-    /// The friction and its slope at the state's velocity ([`friction`]), which the
-    /// friction's secant starts from.
-    pub friction: (f64, f64),
 }
 
 impl Linearisation {
@@ -48,34 +46,33 @@ pub(crate) fn linearise(
     p_supply: f64,
     load: f64,
 ) -> (Vec4, Mat4, Vec4) {
-    let l = linearisation(params, y, x_s, p_supply, load, friction(params, y[V]));
+    let motion = motion_row(params, y, load, friction(params, y[V]));
+    let l = linearisation(params, y, x_s, p_supply, &motion);
     let jac = [l.d_pa, l.d_pb, [0.0, 0.0, 0.0, 1.0], l.d_v];
     (l.rates, jac, [l.d_xs[0], l.d_xs[1], 0.0, 0.0])
 }
 
-/// [`linearise`] in the shape of [`Linearisation`], with the friction and its slope at the
-/// state's velocity `friction` ([`friction`]) given: a caller computes it where few values
-/// are live across its libm calls (exp, tanh), which save and restore every one. Inlined:
-/// the fixed-cost step keeps its rows where they are computed.
+/// [`linearise`] in the shape of [`Linearisation`], the rod's row `motion` ([`motion_row`])
+/// given: the friction in it takes libm calls (exp, tanh), which save and restore every
+/// value live across them, so a caller computes that row (and any secant of the friction)
+/// first, while few values are live. Inlined: the fixed-cost step keeps its rows where they
+/// are computed.
 #[inline(always)]
 pub(crate) fn linearisation(
     params: &CylinderParams,
     y: &Vec4,
     x_s: f64,
     p_supply: f64,
-    load: f64,
-    friction: (f64, f64),
+    motion: &MotionRow,
 ) -> Linearisation {
     let state = CylinderState::from_array(y);
     let chambers = pressure_rows(params, &state, x_s, p_supply);
-    let (acceleration, d_v) = motion_row(params, &state, load, friction);
     Linearisation {
-        rates: [chambers.rates[0], chambers.rates[1], state.v, acceleration],
+        rates: [chambers.rates[0], chambers.rates[1], state.v, motion.acceleration],
         d_pa: chambers.d_pa,
         d_pb: chambers.d_pb,
-        d_v,
+        d_v: motion.d_v,
         d_xs: chambers.d_xs,
-        friction,
     }
 }
 
@@ -88,7 +85,8 @@ struct PressureRows {
 }
 
 /// The chambers' pressure rates at `state`, their rows of the Jacobian and their slopes in
-/// the spool position, from [`chamber_terms`].
+/// the spool position, from the chambers' terms ([`chamber_a`], [`chamber_b`]). Chamber A's
+/// row is finished before B's terms are computed: fewer values are live at once.
 #[inline(always)]
 fn pressure_rows(
     params: &CylinderParams,
@@ -96,89 +94,109 @@ fn pressure_rows(
     x_s: f64,
     p_supply: f64,
 ) -> PressureRows {
-    let (area_a, area_b) = (params.area_a(), params.area_b());
-    let chambers = chamber_terms(params, state, x_s, p_supply);
-    let [(volume_a, dva_dx), (volume_b, dvb_dx)] = chambers.volumes;
-    let [inflow_a, inflow_b] = chambers.inflows;
-    let [(cf_a, dcfa_dpa), (cf_b, dcfb_dpb)] = chambers.cavitation;
-    let [stiff_a, stiff_b] = chambers.stiffness;
-    let [drelief_a, drelief_b] = chambers.relief_slopes;
-    let ports = &chambers.ports;
-    let (dqa_dpa, dqb_dpb) = (ports.dqa_dpa, ports.dqb_dpb);
-    let (c_leak, c_ext) = (params.c_leak, params.c_leak_external);
+    let [volume_a, volume_b] = chamber_volumes(params, state.x);
+    let ports = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
     // d inflow_a / d(p_a, p_b, x, v) = (dqa_dpa - c_leak - c_ext - drelief_a, c_leak, 0, -A_A)
-    let d_pa = [
-        stiff_a * (cf_a * (dqa_dpa - c_leak - c_ext - drelief_a) + inflow_a * dcfa_dpa),
-        stiff_a * cf_a * c_leak,
-        -stiff_a / volume_a * dva_dx * inflow_a * cf_a,
-        -stiff_a * cf_a * area_a,
-    ];
+    let a = chamber_a(params, state, volume_a, &ports);
+    let ([own_a, other_a, x_a, v_a], xs_a) =
+        chamber_row(params, &a, ports.dqa_dpa, -params.area_a(), ports.dqa_dxs);
     // d inflow_b / d(p_a, p_b, x, v) = (c_leak, -dqb_dpb - c_leak - c_ext - drelief_b, 0, A_B)
-    let d_pb = [
-        stiff_b * cf_b * c_leak,
-        stiff_b * (cf_b * (-dqb_dpb - c_leak - c_ext - drelief_b) + inflow_b * dcfb_dpb),
-        -stiff_b / volume_b * dvb_dx * inflow_b * cf_b,
-        stiff_b * cf_b * area_b,
-    ];
+    let b = chamber_b(params, state, volume_b, &ports);
+    let ([own_b, other_b, x_b, v_b], xs_b) =
+        chamber_row(params, &b, -ports.dqb_dpb, params.area_b(), -ports.dqb_dxs);
     PressureRows {
-        rates: chambers.pressure_rates,
-        d_pa,
-        d_pb,
-        d_xs: [stiff_a * cf_a * ports.dqa_dxs, -stiff_b * cf_b * ports.dqb_dxs],
+        rates: [a.pressure_rate, b.pressure_rate],
+        d_pa: [own_a, other_a, x_a, v_a],
+        d_pb: [other_b, own_b, x_b, v_b],
+        d_xs: [xs_a, xs_b],
     }
 }
 
-/// The rod's acceleration at `state` under `load` and its row of the Jacobian, with the
+/// A chamber's slopes of its pressure rate, `[in its own pressure, in the other chamber's,
+/// in x, in v]` and in the spool position, from its terms `c` and its inflow's slopes
+/// through the port in its own pressure (`dport_dp`) and the spool position (`dport_dxs`)
+/// and in the rod's velocity (`dinflow_dv`, the displaced area with its sign).
+#[inline(always)]
+fn chamber_row(
+    params: &CylinderParams,
+    c: &Chamber,
+    dport_dp: f64,
+    dinflow_dv: f64,
+    dport_dxs: f64,
+) -> ([f64; 4], f64) {
+    let (c_leak, c_ext) = (params.c_leak, params.c_leak_external);
+    let ((volume, dvolume_dx), (cf, dcf_dp)) = (c.volume, c.cavitation);
+    let stiff = c.stiffness;
+    let row = [
+        stiff * (cf * (dport_dp - c_leak - c_ext - c.relief_slope) + c.inflow * dcf_dp),
+        stiff * cf * c_leak,
+        -stiff / volume * dvolume_dx * c.inflow * cf,
+        stiff * cf * dinflow_dv,
+    ];
+    (row, stiff * cf * dport_dxs)
+}
+
+/// The rod's side of a [`Linearisation`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct MotionRow {
+    /// `v'`.
+    pub acceleration: f64,
+    /// The row `d v'/dy` of the Jacobian.
+    pub d_v: Vec4,
+    /// The friction and its slope at the state's velocity ([`friction`]), which the
+    /// friction's secant starts from.
+    pub friction: (f64, f64),
+}
+
+/// The rod's acceleration at `y` under `load` and its row of the Jacobian, with the
 /// friction and its slope `friction` at the state's velocity.
 #[inline(always)]
-fn motion_row(
+pub(crate) fn motion_row(
     params: &CylinderParams,
-    state: &CylinderState,
+    y: &Vec4,
     load: f64,
     friction: (f64, f64),
-) -> (f64, Vec4) {
-    match params.port {
+) -> MotionRow {
+    let (acceleration, d_v) = match params.port {
         RodPort::Force => {
-            let [force, dforce_dx, dforce_dv] = net_force_with(params, state, load, friction);
-            let (area_a, area_b) = (params.area_a(), params.area_b());
+            let state = CylinderState::from_array(y);
+            let [force, dforce_dx, dforce_dv] = net_force_with(params, &state, load, friction);
+            let (a_per_mass, b_per_mass) = params.areas_per_mass();
             (
                 force / params.mass,
-                [
-                    area_a / params.mass,
-                    -area_b / params.mass,
-                    dforce_dx / params.mass,
-                    dforce_dv / params.mass,
-                ],
+                [a_per_mass, -b_per_mass, dforce_dx / params.mass, dforce_dv / params.mass],
             )
         }
         // The host moves the rod at the acceleration `load`: nothing here acts back on it.
         RodPort::Motion => (load, [0.0; N_STATES]),
-    }
+    };
+    MotionRow { acceleration, d_v, friction }
 }
 
 /// Friction's creep band, in `cylinder.v_friction_smooth`: past this many its `tanh` is 1 to
 /// rounding (tanh(20) = 1 - 8e-18), and a step outside it sees the friction's tangent.
 const CREEP_BAND: f64 = 20.0;
 
-/// For a fixed step of `h` that starts in the friction's creep band or crosses or reaches it
-/// (`v` through zero: starting from rest, a reversal), the friction's slope in `l` replaced
-/// by its secant from `v` to the explicit prediction `v + h v'`. The band is 1e-4 m/s wide:
-/// its tangent (3e5 N s/m at rest) holds a Rosenbrock step's velocity as a damper would,
-/// though the piston leaves the band in a microsecond (a step from rest lost a sixth of its
-/// velocity); the secant is the damping the step actually crosses. Outside the band the
-/// tangent stays, and with it the method's order.
-pub(crate) fn secant_friction(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisation) {
+/// For a fixed step of `h` from velocity `v` that starts in the friction's creep band or
+/// crosses or reaches it (`v` through zero: starting from rest, a reversal), the friction's
+/// slope in the rod's row `motion` replaced by its secant from `v` to the explicit
+/// prediction `v + h v'`. The band is 1e-4 m/s wide: its tangent (3e5 N s/m at rest) holds
+/// a Rosenbrock step's velocity as a damper would, though the piston leaves the band in a
+/// microsecond (a step from rest lost a sixth of its velocity); the secant is the damping
+/// the step actually crosses. Outside the band the tangent stays, and with it the method's
+/// order.
+pub(crate) fn secant_friction(params: &CylinderParams, v: f64, h: f64, motion: &mut MotionRow) {
     if params.port == RodPort::Motion {
         return;
     }
-    let (v0, v1) = (y[V], y[V] + h * l.rates[V]);
+    let (v0, v1) = (v, v + h * motion.acceleration);
     let band = CREEP_BAND * params.v_friction_smooth;
     if (v0 * v1 > 0.0 && v0.abs() > band && v1.abs() > band) || v1 == v0 {
         return;
     }
-    let (f0, tangent) = l.friction;
+    let (f0, tangent) = motion.friction;
     let secant = (friction(params, v1).0 - f0) / (v1 - v0);
-    l.d_v[V] += (tangent - secant) / params.mass;
+    motion.d_v[V] += (tangent - secant) / params.mass;
 }
 
 /// For a fixed step of `h` in which a chamber being emptied heads into the cavitation band
@@ -191,7 +209,7 @@ pub(crate) fn secant_friction(params: &CylinderParams, y: &Vec4, h: f64, l: &mut
 /// velocity). With the secant the undershoot is 1e4 Pa at most. Elsewhere the tangent stays,
 /// and with it the method's order.
 pub(crate) fn secant_cavitation(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisation) {
-    let top = params.p_cavitation + params.dp_cavitation_band;
+    let top = params.cavitation_band_top();
     for k in [PA, PB] {
         let (p0, rate) = (y[k], l.rates[k]);
         let p1 = at_least(p0 + h * rate, params.p_cavitation);

@@ -23,13 +23,52 @@ pub(crate) type Mat4 = [[f64; N_STATES]; N_STATES];
 
 /// Physical parameters of valve ports, cylinder and load, in SI (pressures gauge): the
 /// cylinder, load and fluid as the model gives them (reached through `Deref`) and the
-/// valve's metering-port data.
+/// valve's metering-port data, with the constants the equations derive from them.
+/// Built by [`CylinderParams::new`] alone (the constants are private), so that they always
+/// match `load`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct CylinderParams {
     /// Cylinder, load, leakage and fluid.
     pub load: CylinderLoadParams,
     /// The valve's metering-port data.
     pub ports: MeteringPorts,
+    derived: Derived,
+}
+
+/// What the equations derive from the cylinder's and load's parameters alone, computed once
+/// when they are set rather than at every evaluation (the fixed-cost step linearises twice
+/// per communication step), each by the expression its users evaluated before, so that the
+/// results keep their bits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Derived {
+    area_a: f64,
+    area_b: f64,
+    half_stroke: f64,
+    min_volume: f64,
+    cavitation_band_top: f64,
+    relief_opening: f64,
+    friction_excess: f64,
+    v_stribeck_squared: f64,
+    area_a_per_mass: f64,
+    area_b_per_mass: f64,
+}
+
+impl Derived {
+    fn of(load: &CylinderLoadParams) -> Derived {
+        let (area_a, area_b) = (load.area_a(), load.area_b());
+        Derived {
+            area_a,
+            area_b,
+            half_stroke: 0.5 * load.stroke,
+            min_volume: MIN_VOLUME_FRACTION * load.v_dead,
+            cavitation_band_top: load.p_cavitation + load.dp_cavitation_band,
+            relief_opening: load.p_tank + load.relief_p_crack,
+            friction_excess: load.f_static - load.f_coulomb,
+            v_stribeck_squared: load.v_stribeck * load.v_stribeck,
+            area_a_per_mass: area_a / load.mass,
+            area_b_per_mass: area_b / load.mass,
+        }
+    }
 }
 
 impl std::ops::Deref for CylinderParams {
@@ -59,14 +98,77 @@ impl CylinderParams {
     ) -> Result<CylinderParams, String> {
         let p = CylinderParams {
             load: *cylinder,
-            ports: MeteringPorts {
-                k3: valve.k3,
-                dp_rated: valve.dp_rated,
-                dp_laminar: valve.dp_laminar,
-            },
+            ports: MeteringPorts::new(valve.k3, valve.dp_rated, valve.dp_laminar),
+            derived: Derived::of(cylinder),
         };
         p.validate()?;
         Ok(p)
+    }
+
+    /// These parameters with the cylinder and load replaced by `load` (not validated).
+    #[cfg(test)]
+    pub(crate) fn with_load(&self, load: CylinderLoadParams) -> CylinderParams {
+        CylinderParams { load, ports: self.ports, derived: Derived::of(&load) }
+    }
+
+    /// Piston area on the A (cap) side (m2), [`CylinderLoadParams::area_a`].
+    #[inline(always)]
+    pub(crate) fn area_a(&self) -> f64 {
+        self.derived.area_a
+    }
+
+    /// Annulus area on the B (rod) side (m2), [`CylinderLoadParams::area_b`].
+    #[inline(always)]
+    pub(crate) fn area_b(&self) -> f64 {
+        self.derived.area_b
+    }
+
+    /// Half the stroke: the stops' faces are at `+-` this (m).
+    #[inline(always)]
+    pub(crate) fn half_stroke(&self) -> f64 {
+        self.derived.half_stroke
+    }
+
+    /// The chambers' smallest volume, [`MIN_VOLUME_FRACTION`] of the dead volume (m3).
+    #[inline(always)]
+    pub(crate) fn min_volume(&self) -> f64 {
+        self.derived.min_volume
+    }
+
+    /// The top of the cavitation band, `p_cavitation + dp_cavitation_band` (Pa).
+    #[inline(always)]
+    pub(crate) fn cavitation_band_top(&self) -> f64 {
+        self.derived.cavitation_band_top
+    }
+
+    /// The relief valves' cracking pressure above the tank, `p_tank + relief_p_crack` (Pa).
+    #[inline(always)]
+    pub(crate) fn relief_opening(&self) -> f64 {
+        self.derived.relief_opening
+    }
+
+    /// Whether the chambers have relief valves (`relief_p_crack` 0 removes them).
+    #[inline(always)]
+    pub(crate) fn has_relief(&self) -> bool {
+        self.relief_p_crack != 0.0
+    }
+
+    /// The friction's Stribeck peak above the Coulomb level, `f_static - f_coulomb` (N).
+    #[inline(always)]
+    pub(crate) fn friction_excess(&self) -> f64 {
+        self.derived.friction_excess
+    }
+
+    /// `v_stribeck^2` (m2/s2).
+    #[inline(always)]
+    pub(crate) fn v_stribeck_squared(&self) -> f64 {
+        self.derived.v_stribeck_squared
+    }
+
+    /// `(A_A / m, A_B / m)`: the rod's acceleration per unit of each chamber's pressure.
+    #[inline(always)]
+    pub(crate) fn areas_per_mass(&self) -> (f64, f64) {
+        (self.derived.area_a_per_mass, self.derived.area_b_per_mass)
     }
 
     /// The rules between parameters.
@@ -97,7 +199,7 @@ impl CylinderParams {
                 "p_supply = {p_supply} Pa is not below the relief valves' setting \
                  hydraulics.p_tank + relief.p_crack = {} Pa: they would open in normal \
                  operation; raise relief.p_crack, or set it to 0 to remove them",
-                self.p_tank + self.relief_p_crack
+                self.relief_opening()
             ));
         }
         Ok(())

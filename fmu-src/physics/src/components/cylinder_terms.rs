@@ -11,20 +11,21 @@
 //! would see it), except at the contact switching surfaces of the end stop where it is the
 //! side without contact.
 
-use crate::components::cylinder_params::{CylinderParams, CylinderState, MIN_VOLUME_FRACTION};
+use crate::components::cylinder_params::{CylinderParams, CylinderState};
 use crate::components::metering_ports::PortFlows;
 
 /// Chamber volumes `(V_A, V_B)` at position `x`, before the clamp (m3).
 pub(crate) fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
-    let half = 0.5 * params.stroke;
+    let half = params.half_stroke();
     (params.v_dead + params.area_a() * (x + half), params.v_dead + params.area_b() * (half - x))
 }
 
 /// Chamber volumes `[(V_A, dV_A/dx), (V_B, dV_B/dx)]` at position `x` (m3, m2): clamped at
-/// [`MIN_VOLUME_FRACTION`] of the dead volume, where they have no slope.
+/// [`MIN_VOLUME_FRACTION`](super::cylinder_params::MIN_VOLUME_FRACTION) of the dead volume, where
+/// they have no slope.
 #[inline(always)]
 pub(crate) fn chamber_volumes(params: &CylinderParams, x: f64) -> [(f64, f64); 2] {
-    let min_volume = MIN_VOLUME_FRACTION * params.v_dead;
+    let min_volume = params.min_volume();
     let (volume_a, volume_b) = free_volumes(params, x);
     let clamped = |volume: f64, area: f64| {
         if volume >= min_volume {
@@ -69,8 +70,11 @@ pub(crate) fn port_flows(
 /// slope `dQ/dp`: zero up to the cracking pressure, quadratic over the override, then
 /// linear with the slope matched (C1).
 pub(crate) fn relief_flow(params: &CylinderParams, p: f64) -> (f64, f64) {
+    if !params.has_relief() {
+        return (0.0, 0.0);
+    }
     let rise = p - params.p_tank - params.relief_p_crack;
-    if params.relief_p_crack == 0.0 || rise <= 0.0 {
+    if rise <= 0.0 {
         return (0.0, 0.0);
     }
     let (q_rated, override_) = (params.relief_q_rated, params.relief_dp_override);
@@ -102,7 +106,7 @@ pub(crate) fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64
 #[inline(always)]
 pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
     let stribeck = (v / params.v_stribeck).powi(2);
-    let excess = params.f_static - params.f_coulomb;
+    let excess = params.friction_excess();
     let a = v / params.v_friction_smooth;
     // Well past the Stribeck speed the decayed part is below half an ulp of F_coulomb
     // (F_coulomb * 2^-54 bounds that from below), so the sum is F_coulomb exactly. The
@@ -116,7 +120,7 @@ pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
         let decay = stribeck_decay(stribeck);
         (params.f_coulomb + excess * decay, decay)
     };
-    let ddry_dv = excess * decay * (-2.0 * v / (params.v_stribeck * params.v_stribeck));
+    let ddry_dv = excess * decay * (-2.0 * v / params.v_stribeck_squared());
     let th = smooth_sign(a);
     let force = dry * th + params.b_viscous * v;
     let slope = ddry_dv * th + dry * (1.0 - th * th) / params.v_friction_smooth + params.b_viscous;
@@ -184,7 +188,7 @@ pub(crate) fn smooth_sign(a: f64) -> f64 {
 #[inline(always)]
 pub(crate) fn endstop_force(params: &CylinderParams, x: f64, v: f64) -> (f64, f64, f64) {
     let (k, c) = (params.k_endstop, params.c_endstop);
-    let half = 0.5 * params.stroke;
+    let half = params.half_stroke();
     let beyond_top = x - half;
     let beyond_bottom = -half - x;
     let slopes = |s: f64| if s > 0.0 { (-k, -c) } else { (0.0, 0.0) };
@@ -222,59 +226,77 @@ pub(crate) fn net_force_with(
     [force, dcontact_dx, dcontact_dv - dfriction_dv]
 }
 
-/// The chambers' side of the equations at a state, each term with its slopes.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct ChamberTerms {
-    /// `[(V_A, dV_A/dx), (V_B, dV_B/dx)]` ([`chamber_volumes`]).
-    pub volumes: [(f64, f64); 2],
-    pub ports: PortFlows,
-    /// `dQ/dp` of the relief flows out of A and B.
-    pub relief_slopes: [f64; 2],
-    /// Net inflows into A and B (m3/s).
-    pub inflows: [f64; 2],
-    /// Bulk-modulus factors of A and B and their slopes in the chamber's own pressure.
-    pub cavitation: [(f64, f64); 2],
-    /// `beta / V` of A and B (Pa/m3).
-    pub stiffness: [f64; 2],
-    /// `[p_A', p_B']` (Pa/s).
-    pub pressure_rates: [f64; 2],
-}
-
-/// The chambers' terms at `state` for spool position `x_s`: port flows, leakage and relief
-/// flows make each chamber's net inflow, which its stiffness `beta / V` and cavitation
-/// factor turn into its pressure rate.
+/// The chambers' terms `[A, B]` at `state` for spool position `x_s`: port flows, leakage
+/// and relief flows make each chamber's net inflow, which its stiffness `beta / V` and
+/// cavitation factor turn into its pressure rate.
 #[inline(always)]
 pub(crate) fn chamber_terms(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,
     p_supply: f64,
-) -> ChamberTerms {
-    let (area_a, area_b) = (params.area_a(), params.area_b());
-    let volumes = chamber_volumes(params, state.x);
+) -> [Chamber; 2] {
+    let [volume_a, volume_b] = chamber_volumes(params, state.x);
     let ports = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
+    [chamber_a(params, state, volume_a, &ports), chamber_b(params, state, volume_b, &ports)]
+}
+
+/// One chamber's side of the equations at a state, each term with its slopes in the
+/// chamber's own pressure.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Chamber {
+    /// `(V, dV/dx)` ([`chamber_volumes`]).
+    pub volume: (f64, f64),
+    /// `dQ/dp` of its relief flow.
+    pub relief_slope: f64,
+    /// Net inflow (m3/s).
+    pub inflow: f64,
+    /// Bulk-modulus factor and its slope in the chamber's pressure.
+    pub cavitation: (f64, f64),
+    /// `beta / V` (Pa/m3).
+    pub stiffness: f64,
+    /// `p'` (Pa/s).
+    pub pressure_rate: f64,
+}
+
+/// Chamber A's terms at `state`, its volume `volume` and the ports' flows `ports` given.
+#[inline(always)]
+pub(crate) fn chamber_a(
+    params: &CylinderParams,
+    state: &CylinderState,
+    volume: (f64, f64),
+    ports: &PortFlows,
+) -> Chamber {
     let q_internal = params.c_leak * (state.p_a - state.p_b);
-    let q_external_a = params.c_leak_external * (state.p_a - params.p_tank);
-    let q_external_b = params.c_leak_external * (state.p_b - params.p_tank);
-    let (relief_a, drelief_a) = relief_flow(params, state.p_a);
-    let (relief_b, drelief_b) = relief_flow(params, state.p_b);
-    let inflow_a = ports.q_a - area_a * state.v - q_internal - q_external_a - relief_a;
-    let inflow_b = -ports.q_b + area_b * state.v + q_internal - q_external_b - relief_b;
-    let cavitation_a = cavitation_factor(params, state.p_a, inflow_a);
-    let cavitation_b = cavitation_factor(params, state.p_b, inflow_b);
-    let stiffness_a = params.beta / volumes[0].0;
-    let stiffness_b = params.beta / volumes[1].0;
-    let dp_a = stiffness_a * inflow_a * cavitation_a.0;
-    let dp_b = stiffness_b * inflow_b * cavitation_b.0;
-    ChamberTerms {
-        volumes,
-        ports,
-        relief_slopes: [drelief_a, drelief_b],
-        inflows: [inflow_a, inflow_b],
-        cavitation: [cavitation_a, cavitation_b],
-        stiffness: [stiffness_a, stiffness_b],
-        pressure_rates: [dp_a, dp_b],
-    }
+    let inflow = ports.q_a - params.area_a() * state.v - q_internal;
+    chamber(params, state.p_a, volume, inflow)
+}
+
+/// Chamber B's terms, as [`chamber_a`]'s.
+#[inline(always)]
+pub(crate) fn chamber_b(
+    params: &CylinderParams,
+    state: &CylinderState,
+    volume: (f64, f64),
+    ports: &PortFlows,
+) -> Chamber {
+    let q_internal = params.c_leak * (state.p_a - state.p_b);
+    let inflow = -ports.q_b + params.area_b() * state.v + q_internal;
+    chamber(params, state.p_b, volume, inflow)
+}
+
+/// A chamber's terms at pressure `p` and volume `volume`, with `inflow` flowing in through
+/// its port, the piston's displacement and the internal leak: the external leak and the
+/// relief valve take their flows from that.
+#[inline(always)]
+fn chamber(params: &CylinderParams, p: f64, volume: (f64, f64), inflow: f64) -> Chamber {
+    let q_external = params.c_leak_external * (p - params.p_tank);
+    let (relief, relief_slope) = relief_flow(params, p);
+    let inflow = inflow - q_external - relief;
+    let cavitation = cavitation_factor(params, p, inflow);
+    let stiffness = params.beta / volume.0;
+    let pressure_rate = stiffness * inflow * cavitation.0;
+    Chamber { volume, relief_slope, inflow, cavitation, stiffness, pressure_rate }
 }
 
 #[cfg(test)]
@@ -289,7 +311,7 @@ mod tests {
     /// tank at 0 cannot tell a law that measures from the tank from one that does not.
     fn with_tank(p_tank: f64) -> CylinderParams {
         let p = CylinderParams::default();
-        CylinderParams { load: CylinderLoadParams { p_tank, ..p.load }, ..p }
+        p.with_load(CylinderLoadParams { p_tank, ..p.load })
     }
 
     /// The relief valve's rise is counted from the tank (`d = p - p_T - p_crack`): with the
@@ -323,10 +345,11 @@ mod tests {
     #[test]
     fn leakage_and_displacement_make_the_chambers_net_inflows() {
         let base = with_tank(2e5);
-        let p = CylinderParams {
-            load: CylinderLoadParams { c_leak: 1e-12, c_leak_external: 3e-13, ..base.load },
-            ..base
-        };
+        let p = base.with_load(CylinderLoadParams {
+            c_leak: 1e-12,
+            c_leak_external: 3e-13,
+            ..base.load
+        });
         let area_a = FRAC_PI_4 * p.bore * p.bore;
         let area_b = area_a - FRAC_PI_4 * p.rod * p.rod;
         let x = 0.01;
@@ -344,10 +367,10 @@ mod tests {
                 let inflow: f64 = parts[k].iter().sum();
                 // Rounding of the sum: a few ulps of its largest part.
                 let scale = parts[k].iter().map(|q| q.abs()).fold(0.0, f64::max);
-                assert!((terms.inflows[k] - inflow).abs() <= 1e-14 * scale, "{k} {s:?}");
+                assert!((terms[k].inflow - inflow).abs() <= 1e-14 * scale, "{k} {s:?}");
                 let rate = p.beta / volumes[k] * inflow;
                 let rate_scale = p.beta / volumes[k] * scale;
-                assert!((terms.pressure_rates[k] - rate).abs() <= 1e-13 * rate_scale, "{k} {s:?}");
+                assert!((terms[k].pressure_rate - rate).abs() <= 1e-13 * rate_scale, "{k} {s:?}");
             }
         }
     }

@@ -40,13 +40,9 @@ fn parameters_come_from_the_table_and_cross_checks_name_the_variable() {
     );
     // Single values are checked against the table at the model boundary (model.rs tests),
     // the rules between them here.
-    let bad =
-        CylinderParams { load: CylinderLoadParams { rod: 0.02, ..defaults.load }, ..defaults };
+    let bad = defaults.with_load(CylinderLoadParams { rod: 0.02, ..defaults.load });
     assert!(bad.validate().unwrap_err().contains("cylinder.rod"));
-    let bad = CylinderParams {
-        load: CylinderLoadParams { p_cavitation: 1e5, ..defaults.load },
-        ..defaults
-    };
+    let bad = defaults.with_load(CylinderLoadParams { p_cavitation: 1e5, ..defaults.load });
     assert!(bad.validate().unwrap_err().contains("hydraulics.p_cavitation"));
 }
 
@@ -369,10 +365,7 @@ fn analytic_jacobian_matches_finite_differences() {
             0.0,
         ),
     ];
-    let leaky = CylinderParams {
-        load: CylinderLoadParams { c_leak: 1e-12, c_leak_external: 3e-13, ..p.load },
-        ..p
-    };
+    let leaky = p.with_load(CylinderLoadParams { c_leak: 1e-12, c_leak_external: 3e-13, ..p.load });
     for (name, s, x_s, f_ext) in cases {
         let params = if name == "with leakage" { leaky } else { p };
         let y = s.to_array();
@@ -446,7 +439,7 @@ fn relief_flow_opens_smoothly_to_rated_flow_at_crack_plus_override() {
         assert!((relief_flow(&p, p_chamber).1 - fd).abs() < 1e-9 * fd, "{p_chamber}");
     }
     // 0 removes the valves.
-    let none = CylinderParams { load: CylinderLoadParams { relief_p_crack: 0.0, ..p.load }, ..p };
+    let none = p.with_load(CylinderLoadParams { relief_p_crack: 0.0, ..p.load });
     assert_eq!(relief_flow(&none, 1e9), (0.0, 0.0));
     // In the equations: a sealed chamber above cracking loses exactly the relief flow.
     let s = CylinderState { p_a: crack + over, ..equilibrium(&p, P_RATED, 0.0) };
@@ -477,7 +470,8 @@ fn supply_at_or_above_the_relief_setting_is_refused() {
     assert!(p.check_supply(P_RATED).is_ok());
     let e = p.check_supply(p.relief_p_crack).unwrap_err();
     assert!(e.contains("relief.p_crack"), "{e}");
-    assert!(CylinderParams { load: CylinderLoadParams { relief_p_crack: 0.0, ..p.load }, ..p }
+    assert!(p
+        .with_load(CylinderLoadParams { relief_p_crack: 0.0, ..p.load })
         .check_supply(1e8)
         .is_ok());
 }
@@ -497,9 +491,8 @@ fn friction_shortcuts_give_the_bits_of_the_full_formula() {
     };
     let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
     let defaults = CylinderParams::default();
-    let load = |f_coulomb: f64, f_static: f64, b_viscous: f64| CylinderParams {
-        load: CylinderLoadParams { f_coulomb, f_static, b_viscous, ..defaults.load },
-        ..defaults
+    let load = |f_coulomb: f64, f_static: f64, b_viscous: f64| {
+        defaults.with_load(CylinderLoadParams { f_coulomb, f_static, b_viscous, ..defaults.load })
     };
     // Defaults, no Coulomb part (the exact-Coulomb shortcut must not apply), a Stribeck peak
     // far above the Coulomb level, friction falling below it, no viscous part (the slope's

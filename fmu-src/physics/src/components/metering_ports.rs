@@ -19,6 +19,11 @@ pub(crate) struct MeteringPorts {
     pub dp_rated: f64,
     /// Port pressure drop below which the orifice law turns laminar (regularisation) (Pa).
     pub dp_laminar: f64,
+    /// `sqrt(dp_rated / 2)`, `K3 / sqrt(dp_rated / 2)` and `sqrt(dp_laminar)`, computed once
+    /// ([`MeteringPorts::new`]) rather than at every evaluation.
+    rated_root: f64,
+    gain_per_xs: f64,
+    laminar_root: f64,
 }
 
 /// The flows through the open ports and their slopes.
@@ -36,6 +41,20 @@ pub(crate) struct PortFlows {
 }
 
 impl MeteringPorts {
+    /// The ports of flow gain `k3` (m2/s), rated drop `dp_rated` and laminar limit
+    /// `dp_laminar` (Pa).
+    pub(crate) fn new(k3: f64, dp_rated: f64, dp_laminar: f64) -> MeteringPorts {
+        let rated_root = (0.5 * dp_rated).sqrt();
+        MeteringPorts {
+            k3,
+            dp_rated,
+            dp_laminar,
+            rated_root,
+            gain_per_xs: k3 / rated_root,
+            laminar_root: dp_laminar.sqrt(),
+        }
+    }
+
     /// The flows at spool position `x_s` with the chambers at `[p_a, p_b]`, supply
     /// `p_supply` and tank `p_tank`, and their slopes. Inlined: a caller that needs the flows
     /// alone does not compute the slopes.
@@ -47,9 +66,9 @@ impl MeteringPorts {
         p_supply: f64,
         p_tank: f64,
     ) -> PortFlows {
-        let gain_per_xs = self.k3 / (0.5 * self.dp_rated).sqrt();
-        let gain = self.k3 * x_s / (0.5 * self.dp_rated).sqrt();
-        let lam = self.dp_laminar;
+        let gain_per_xs = self.gain_per_xs;
+        let gain = self.k3 * x_s / self.rated_root;
+        let lam = Laminar { dp: self.dp_laminar, root: self.laminar_root };
         // Per open edge, `regularised_sqrt` of its pressure drop and its slope in the
         // chamber's pressure.
         let ((r_a, dra_dpa), (r_b, drb_dpb)) = if x_s >= 0.0 {
@@ -78,27 +97,37 @@ impl MeteringPorts {
     }
 }
 
+/// The laminar limit of the orifice law, `dp_lam`, with its square root.
+#[derive(Clone, Copy)]
+struct Laminar {
+    dp: f64,
+    root: f64,
+}
+
 /// Signed square root, regularised below `dp_lam` by the odd cubic `a dp + b dp^3` that
 /// matches value and slope of `sqrt` at `dp_lam` (C1; slope 1.25/sqrt(dp_lam) at zero).
-pub(crate) fn regularised_sqrt(dp: f64, dp_lam: f64) -> f64 {
+#[inline(always)]
+fn regularised_sqrt(dp: f64, lam: Laminar) -> f64 {
     let magnitude = dp.abs();
-    if magnitude >= dp_lam {
+    if magnitude >= lam.dp {
         // dp.signum() * sqrt(|dp|) (dp is not NaN here), without signum's NaN handling.
         magnitude.sqrt().copysign(dp)
     } else {
-        let s = dp / dp_lam;
-        dp_lam.sqrt() * s * (1.25 - 0.25 * s * s)
+        let s = dp / lam.dp;
+        lam.root * s * (1.25 - 0.25 * s * s)
     }
 }
 
-/// Slope of [`regularised_sqrt`] with respect to `dp` (finite everywhere, 1.25/sqrt(dp_lam) at 0).
-pub(crate) fn regularised_sqrt_slope(dp: f64, dp_lam: f64) -> f64 {
+/// Slope of [`regularised_sqrt`] with respect to `dp` (finite everywhere, 1.25/sqrt(dp_lam) at
+/// 0), the laminar limit's root known.
+#[inline(always)]
+fn regularised_sqrt_slope(dp: f64, lam: Laminar) -> f64 {
     let magnitude = dp.abs();
-    if magnitude >= dp_lam {
+    if magnitude >= lam.dp {
         0.5 / magnitude.sqrt()
     } else {
-        let s = dp / dp_lam;
-        (1.25 - 0.75 * s * s) / dp_lam.sqrt()
+        let s = dp / lam.dp;
+        (1.25 - 0.75 * s * s) / lam.root
     }
 }
 
@@ -110,7 +139,12 @@ mod tests {
 
     fn paper_ports() -> MeteringPorts {
         let v = crate::params::Params::PAPER.valve;
-        MeteringPorts { k3: v.k3, dp_rated: v.dp_rated, dp_laminar: v.dp_laminar }
+        MeteringPorts::new(v.k3, v.dp_rated, v.dp_laminar)
+    }
+
+    /// [`super::regularised_sqrt`] below `lam`.
+    fn regularised_sqrt(dp: f64, lam: f64) -> f64 {
+        super::regularised_sqrt(dp, Laminar { dp: lam, root: lam.sqrt() })
     }
 
     #[test]

@@ -23,9 +23,9 @@ pub(crate) fn rod_stiffness(
     x_s: f64,
     p_supply: f64,
 ) -> (f64, f64) {
-    let chambers = chamber_terms(params, state, x_s, p_supply);
-    let [stiff_a, stiff_b] = chambers.stiffness;
-    let [(fade_a, _), (fade_b, _)] = chambers.cavitation;
+    let [a, b] = chamber_terms(params, state, x_s, p_supply);
+    let [stiff_a, stiff_b] = [a.stiffness, b.stiffness];
+    let [(fade_a, _), (fade_b, _)] = [a.cavitation, b.cavitation];
     let (area_a, area_b) = (params.area_a(), params.area_b());
     let [_, dforce_dx, dforce_dv] = net_force(params, state, 0.0);
     let oil = stiff_a * fade_a * area_a * area_a + stiff_b * fade_b * area_b * area_b;

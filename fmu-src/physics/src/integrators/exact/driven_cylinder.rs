@@ -121,7 +121,7 @@ impl DrivenCylinder {
     /// else changes: one model evaluation instead of a Rosenbrock step (a constant command
     /// drives the piston so across most of its stroke).
     fn glide(&mut self, params: &CylinderParams, x_s: f64, inputs: &HeldInputs, h: f64) -> bool {
-        let half = 0.5 * params.stroke;
+        let half = params.half_stroke();
         let x_end = self.state.x + self.state.v * h;
         if !(self.state.x.abs() < half && x_end.abs() < half && self.steady(params, x_s, inputs)) {
             return false;

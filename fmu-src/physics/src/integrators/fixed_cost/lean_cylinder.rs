@@ -23,7 +23,7 @@
 use crate::actuator::Actuator;
 use crate::components::cylinder::{CylinderParams, CylinderState, Vec4, PA, PB, V, X};
 use crate::components::cylinder_jacobian::{
-    linearisation, secant_cavitation, secant_friction, Linearisation,
+    linearisation, motion_row, secant_cavitation, secant_friction, Linearisation,
 };
 use crate::components::cylinder_terms::{
     at_least, chamber_volumes, endstop_force, friction, relief_flow,
@@ -113,7 +113,7 @@ fn advance_once(
     let mut y_cut = linear.step(params, y0, fraction * h);
     if contact == Some(fraction) && contact0 == 0.0 {
         // Onto the face: a hair inside, so that the damper's force and both slopes act.
-        let half = 0.5 * params.stroke;
+        let half = params.half_stroke();
         y_cut[X] = y_cut[X].signum() * half * (1.0 + 1e-12);
     }
     let spool_cut = spool[0] + fraction * (spool[1] - spool[0]);
@@ -133,11 +133,12 @@ struct Linearised {
 impl Linearised {
     fn at(params: &CylinderParams, y0: &Vec4, spool: [f64; 2], h: f64, loads: (f64, f64)) -> Self {
         let (p_supply, load) = loads;
-        // The friction before the linearisation, in a frame of its own: nothing else is live
-        // across its libm calls.
+        // The friction (in a frame of its own) and its secant before the pressures' rows:
+        // little is live across their libm calls.
         let friction = friction_at(params, y0[V]);
-        let mut model = linearisation(params, y0, spool[0], p_supply, load, friction);
-        secant_friction(params, y0, h, &mut model);
+        let mut motion = motion_row(params, y0, load, friction);
+        secant_friction(params, y0[V], h, &mut motion);
+        let mut model = linearisation(params, y0, spool[0], p_supply, &motion);
         secant_cavitation(params, y0, h, &mut model);
         secant_relief(params, y0, h, &mut model);
         let spool_rate = (spool[1] - spool[0]) / h;
@@ -169,10 +170,10 @@ fn friction_at(params: &CylinderParams, v: f64) -> (f64, f64) {
 /// where that is the steeper: the law starts with zero slope at the cracking pressure, so
 /// a step from there saw no valve and ran 9 % past the override (100 Hz 10 mA squares).
 fn secant_relief(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisation) {
-    if params.relief_p_crack == 0.0 {
+    if !params.has_relief() {
         return;
     }
-    let crack = params.p_tank + params.relief_p_crack;
+    let crack = params.relief_opening();
     for k in [PA, PB] {
         let (p0, rate) = (y[k], l.rates[k]);
         let p1 = p0 + h * rate;
@@ -193,9 +194,9 @@ fn secant_relief(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisatio
 /// laws, by linear interpolation: entering the cavitation band from above (its bulk
 /// modulus starts to fade there) or rising through the relief valve's cracking pressure.
 fn pressure_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64> {
-    let band_top = params.p_cavitation + params.dp_cavitation_band;
-    let crack = params.p_tank + params.relief_p_crack;
-    let relief = params.relief_p_crack != 0.0;
+    let band_top = params.cavitation_band_top();
+    let crack = params.relief_opening();
+    let relief = params.has_relief();
     [PA, PB]
         .into_iter()
         .filter_map(|k| {
@@ -225,7 +226,7 @@ fn contact_force(params: &CylinderParams, y: &Vec4) -> f64 {
 /// linearly from its value at `y0` to its linear extension at `y1`). `None` where neither
 /// happens.
 fn contact_switch(params: &CylinderParams, (y0, contact0): (&Vec4, f64), y1: &Vec4) -> Option<f64> {
-    let half = 0.5 * params.stroke;
+    let half = params.half_stroke();
     let side = if y0[X] + y1[X] >= 0.0 { 1.0 } else { -1.0 };
     let depth = |y: &Vec4| side * y[X] - half;
     let fraction = if contact0 == 0.0 {
@@ -285,7 +286,6 @@ mod tests {
             d_pb: [1.5e2, -2.5e4, -4.0e6, 6.0e7],
             d_v: [4.0e-5, -2.5e-5, -1.0e3, -40.0],
             d_xs: [0.0; 2],
-            friction: (0.0, 0.0),
         };
         let jac = [model.d_pa, model.d_pb, [0.0, 0.0, 0.0, 1.0], model.d_v];
         let r = [1.0e3, -2.0e3, 1.0e-6, 3.0e-3];
