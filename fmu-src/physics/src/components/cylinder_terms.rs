@@ -267,8 +267,7 @@ pub(crate) fn chamber_a(
     volume: (f64, f64),
     ports: &PortFlows,
 ) -> Chamber {
-    let q_internal = params.c_leak * (state.p_a - state.p_b);
-    let inflow = ports.q_a - params.area_a() * state.v - q_internal;
+    let inflow = ports.q_a - params.area_a() * state.v - internal_leak(params, state);
     chamber(params, state.p_a, volume, inflow)
 }
 
@@ -280,9 +279,14 @@ pub(crate) fn chamber_b(
     volume: (f64, f64),
     ports: &PortFlows,
 ) -> Chamber {
-    let q_internal = params.c_leak * (state.p_a - state.p_b);
-    let inflow = -ports.q_b + params.area_b() * state.v + q_internal;
+    let inflow = -ports.q_b + params.area_b() * state.v + internal_leak(params, state);
     chamber(params, state.p_b, volume, inflow)
+}
+
+/// The leak across the piston, from A to B (m3/s).
+#[inline(always)]
+fn internal_leak(params: &CylinderParams, state: &CylinderState) -> f64 {
+    params.c_leak * (state.p_a - state.p_b)
 }
 
 /// A chamber's terms at pressure `p` and volume `volume`, with `inflow` flowing in through
