@@ -30,6 +30,8 @@ struct Instance {
     actuator: Actuator,
     ctrladr: usize,
     outadr: usize,
+    /// Its plugin sensors' places in sensordata ([`sensor::of_instance`]).
+    sensors: Vec<(usize, usize)>,
     /// A refused step has been reported (once per instance).
     warned: bool,
 }
@@ -115,7 +117,8 @@ unsafe fn build(m: *const MjModel, d: *mut MjData, instance: c_int) -> Result<()
     }
     let ctrladr = element::<c_int>(m.cast(), o::MODEL_ACTUATOR_CTRLADR, id) as usize;
     let outadr = element::<c_int>(m.cast(), o::MODEL_ACTUATOR_OUTADR, id) as usize;
-    let boxed = Box::new(Instance { actuator, ctrladr, outadr, warned: false });
+    let sensors = sensor::of_instance(m, instance);
+    let boxed = Box::new(Instance { actuator, ctrladr, outadr, sensors, warned: false });
     *instance_ptr(d, instance) = Box::into_raw(boxed);
     Ok(())
 }
@@ -156,7 +159,7 @@ unsafe extern "C" fn compute(m: *const MjModel, d: *mut MjData, instance: c_int,
         let Some(inst) = (*instance_ptr(d, instance)).as_mut() else { return };
         if bit & ffi::PLUGIN_SENSOR != 0 {
             let outputs = &slots(m, d, instance)[..inst.actuator.layout.outputs];
-            sensor::write(m, d, instance, outputs);
+            sensor::write(d, &inst.sensors, outputs);
         }
         if bit & ffi::PLUGIN_ACTUATOR == 0 {
             return;

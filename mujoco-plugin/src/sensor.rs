@@ -23,23 +23,36 @@ pub(crate) unsafe extern "C" fn nsensordata(
     crate::guard(0, || dimension() as c_int)
 }
 
-/// Copies `outputs` (the head of the instance's slots) into every plugin sensor of
-/// `instance`: at most the sensor's dimension, never past `outputs`. MuJoCo asks every
-/// instance at the sensor stage, with or without a sensor: one without writes nothing.
+/// Where instance `instance`'s plugin sensors sit in `sensordata`: `(address, dimension)`
+/// of each. Found once, when the instance is built: the model does not change under it, and
+/// a forward pass then copies without looking through every sensor of the model.
 ///
 /// # Safety
-/// `m`, `d` live, `instance` one of `m`'s plugin instances.
-pub unsafe fn write(m: *const MjModel, d: *mut MjData, instance: c_int, outputs: &[f64]) {
+/// `m` live, `instance` one of its plugin instances.
+pub unsafe fn of_instance(m: *const MjModel, instance: c_int) -> Vec<(usize, usize)> {
     let nsensor: i64 = field(m.cast(), o::MODEL_NSENSOR);
+    (0..nsensor as usize)
+        .filter(|&j| {
+            element::<c_int>(m.cast(), o::MODEL_SENSOR_TYPE, j) == SENS_PLUGIN
+                && element::<c_int>(m.cast(), o::MODEL_SENSOR_PLUGIN, j) == instance
+        })
+        .map(|j| {
+            let adr = element::<c_int>(m.cast(), o::MODEL_SENSOR_ADR, j) as usize;
+            let dim = element::<c_int>(m.cast(), o::MODEL_SENSOR_DIM, j).max(0) as usize;
+            (adr, dim)
+        })
+        .collect()
+}
+
+/// Copies `outputs` (the head of the instance's slots) into each of its `sensors`
+/// ([`of_instance`]): at most the sensor's dimension, never past `outputs`. MuJoCo asks
+/// every instance at the sensor stage, with or without a sensor: one without writes nothing.
+///
+/// # Safety
+/// `d` live, of the model `sensors` was found in.
+pub unsafe fn write(d: *mut MjData, sensors: &[(usize, usize)], outputs: &[f64]) {
     let sensordata: *mut f64 = field(d.cast(), o::DATA_SENSORDATA);
-    for j in 0..nsensor as usize {
-        if element::<c_int>(m.cast(), o::MODEL_SENSOR_TYPE, j) != SENS_PLUGIN
-            || element::<c_int>(m.cast(), o::MODEL_SENSOR_PLUGIN, j) != instance
-        {
-            continue;
-        }
-        let adr = element::<c_int>(m.cast(), o::MODEL_SENSOR_ADR, j) as usize;
-        let dim = element::<c_int>(m.cast(), o::MODEL_SENSOR_DIM, j).max(0) as usize;
+    for &(adr, dim) in sensors {
         let n = dim.min(outputs.len());
         std::ptr::copy_nonoverlapping(outputs.as_ptr(), sensordata.add(adr), n);
     }
