@@ -51,8 +51,7 @@ print(json.dumps({
 """
 
 
-def _headless_run() -> mujoco.MjData:
-    model = mujoco.MjModel.from_xml_path(str(quadruped.MJCF))
+def _headless_run(model) -> mujoco.MjData:
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("stand").id)
     for _ in range(STEPS):
@@ -82,6 +81,6 @@ def test_the_quadruped_opens_in_the_viewer_and_stands():
     qpos = np.array(seen["qpos"])
     # Standing: the trunk within 5 mm of its keyframe height after 30 ms on the cylinders.
     assert abs(qpos[2] - stand.qpos[2]) < 5e-3, qpos[2]
-    headless = _headless_run()
+    headless = _headless_run(model)
     np.testing.assert_array_equal(qpos, headless.qpos)
     np.testing.assert_array_equal(np.array(seen["plugin_state"]), headless.plugin_state)
