@@ -2,7 +2,9 @@
 //! integrator's Jacobian and time derivative (checked against differences in the
 //! cylinder's tests).
 
-use crate::components::cylinder::{CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V};
+use crate::components::cylinder::{
+    CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V, X,
+};
 use crate::components::cylinder_terms::{
     at_least, cavitation_factor, chamber_a, chamber_b, chamber_volumes, friction, net_force_with,
     port_flows, Chamber,
@@ -198,6 +200,64 @@ pub(crate) fn secant_friction(params: &CylinderParams, v: f64, h: f64, motion: &
     let secant = (friction(params, v1).0 - f0) / (v1 - v0);
     motion.d_v[V] += (tangent - secant) / params.mass;
 }
+
+/// For a fixed step of `h` whose explicit prediction `p + h p'` moves a chamber's pressure
+/// by more than [`STEEP_APPROACH`] of the drop across its open metering edge (towards the
+/// supply's pressure or the tank's, or past it), that edge's slope in `l` replaced by its
+/// secant from `p` to the prediction where the secant is the steeper. The orifice's law is
+/// a square root of the drop, steepest where the drop vanishes: a chamber driven into the
+/// supply's pressure (the rod stopped by its load) ran past it by tens of kilopascals from
+/// the tangent at the step's start, and the port's flow, steep there, changed its sign. The
+/// spool is taken where it is at the step's start. Only above the cavitation band, where the
+/// chamber's stiffness is `beta / V` alone; elsewhere the tangent stays.
+pub(crate) fn secant_ports(
+    params: &CylinderParams,
+    (y, x_s): (&Vec4, f64),
+    p_supply: f64,
+    h: f64,
+    l: &mut Linearisation,
+) {
+    let p0 = [y[PA], y[PB]];
+    let p1 = [p0[0] + h * l.rates[PA], p0[1] + h * l.rates[PB]];
+    // The drops across the open edges (P -> A and B -> T for x_s >= 0, A -> T and P -> B
+    // otherwise), whose size says how far the square root is from its steep part.
+    let drops = if x_s >= 0.0 {
+        [p_supply - p0[0], p0[1] - params.p_tank]
+    } else {
+        [p0[0] - params.p_tank, p_supply - p0[1]]
+    };
+    let top = params.cavitation_band_top();
+    let steep = |k: usize| {
+        (p1[k] - p0[k]).abs() > STEEP_APPROACH * drops[k].abs() && p0[k] > top && p1[k] > top
+    };
+    let (steep_a, steep_b) = (steep(0), steep(1));
+    if !(steep_a || steep_b) {
+        return;
+    }
+    let (start, end) =
+        (port_flows(params, p0, x_s, p_supply), port_flows(params, p1, x_s, p_supply));
+    let volumes = chamber_volumes(params, y[X]);
+    // Chamber A's inflow is Q_A and B's is -Q_B: the slopes of each in its own pressure,
+    // tangent and secant, are negative where they damp.
+    let edges = [
+        (steep_a, PA, start.dqa_dpa, end.q_a - start.q_a),
+        (steep_b, PB, -start.dqb_dpb, start.q_b - end.q_b),
+    ];
+    for (steep, k, tangent, inflow_change) in edges {
+        if !steep {
+            continue;
+        }
+        let secant = inflow_change / (p1[k] - p0[k]);
+        if secant < tangent {
+            *l.diagonal_mut(k) += params.beta / volumes[k].0 * (secant - tangent);
+        }
+    }
+}
+
+/// The share of its open edge's pressure drop by which a chamber's predicted pressure
+/// change makes [`secant_ports`] replace the edge's tangent: over a smaller change the
+/// square root is close to its tangent.
+const STEEP_APPROACH: f64 = 0.25;
 
 /// For a fixed step of `h` in which a chamber being emptied heads into the cavitation band
 /// (the explicit prediction `p + h p'` below the band's top), the fade's slope in `l`

@@ -530,3 +530,38 @@ fn friction_shortcuts_give_the_bits_of_the_full_formula() {
         }
     }
 }
+
+/// A fixed step that nearly closes the P -> A edge's drop (chamber A rising into the
+/// supply's pressure) sees that edge by its secant, steeper than its tangent at the start,
+/// by exactly the difference of the two; a step that moves the pressure by a small share
+/// of the drop keeps the tangent.
+#[test]
+fn a_step_into_the_supply_pressure_sees_the_port_by_its_secant() {
+    use crate::components::cylinder_jacobian::{linearisation, motion_row, secant_ports};
+    let params = CylinderParams::default();
+    let y = [P_RATED - 2e5, 1e6, 0.0, 0.0];
+    let (h, x_s) = (5e-5, X_S_RATED);
+    let motion = motion_row(&params, &y, 0.0, friction(&params, 0.0));
+    let at_rate = |rate: f64| {
+        let mut l = linearisation(&params, &y, x_s, P_RATED, &motion);
+        l.rates[PA] = rate;
+        let tangent = l.d_pa[PA];
+        secant_ports(&params, (&y, x_s), P_RATED, h, &mut l);
+        (tangent, l.d_pa[PA])
+    };
+    // Through the supply's pressure: 5e5 Pa over the step against a 2e5 Pa drop.
+    let (tangent, secant) = at_rate(1e10);
+    let p1 = y[PA] + h * 1e10;
+    let (q0, q1) = (
+        port_flows(&params, [y[PA], y[PB]], x_s, P_RATED),
+        port_flows(&params, [p1, y[PB]], x_s, P_RATED),
+    );
+    let (volume_a, _) = free_volumes(&params, 0.0);
+    let expected =
+        tangent + params.beta / volume_a * ((q1.q_a - q0.q_a) / (p1 - y[PA]) - q0.dqa_dpa);
+    assert!(secant < tangent, "{secant} {tangent}");
+    assert!((secant - expected).abs() <= 1e-12 * expected.abs(), "{secant} {expected}");
+    // 5e3 Pa over the step: the square root is close to its tangent there.
+    let (tangent, kept) = at_rate(1e8);
+    assert_eq!(kept, tangent);
+}

@@ -23,7 +23,7 @@
 use crate::actuator::Actuator;
 use crate::components::cylinder::{CylinderParams, CylinderState, Vec4, PA, PB, V, X};
 use crate::components::cylinder_jacobian::{
-    linearisation, motion_row, secant_cavitation, secant_friction, Linearisation,
+    linearisation, motion_row, secant_cavitation, secant_friction, secant_ports, Linearisation,
 };
 use crate::components::cylinder_terms::{
     at_least, chamber_volumes, endstop_force, friction, relief_flow,
@@ -141,6 +141,7 @@ impl Linearised {
         let mut model = linearisation(params, y0, spool[0], p_supply, &motion);
         secant_cavitation(params, y0, h, &mut model);
         secant_relief(params, y0, h, &mut model);
+        secant_ports(params, (y0, spool[0]), p_supply, h, &mut model);
         let spool_rate = (spool[1] - spool[0]) / h;
         Linearised { drift: model.d_xs.map(|d| d * spool_rate), model }
     }
