@@ -195,6 +195,12 @@ fn secant_relief(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisatio
 /// modulus starts to fade there) or rising through the relief valve's cracking pressure.
 fn pressure_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64> {
     let band_top = params.cavitation_band_top();
+    // Either kink is crossed only by a pressure that ends below the band's top or above a
+    // valve's cracking pressure: most steps end between them in both chambers.
+    let (p_a, p_b, ceiling) = (y1[PA], y1[PB], params.relief_ceiling());
+    if p_a >= band_top && p_b >= band_top && p_a <= ceiling && p_b <= ceiling {
+        return None;
+    }
     let crack = params.relief_opening();
     let relief = params.has_relief();
     [PA, PB]
@@ -227,6 +233,10 @@ fn contact_force(params: &CylinderParams, y: &Vec4) -> f64 {
 /// happens.
 fn contact_switch(params: &CylinderParams, (y0, contact0): (&Vec4, f64), y1: &Vec4) -> Option<f64> {
     let half = params.half_stroke();
+    if contact0 == 0.0 && y1[X].abs() <= half {
+        // Out of contact and ending between the faces: no face reached (`side * x <= |x|`).
+        return None;
+    }
     let side = if y0[X] + y1[X] >= 0.0 { 1.0 } else { -1.0 };
     let depth = |y: &Vec4| side * y[X] - half;
     let fraction = if contact0 == 0.0 {
