@@ -139,8 +139,10 @@ impl Linearised {
         let mut motion = motion_row(params, y0, load, friction);
         secant_friction(params, y0[V], h, &mut motion);
         let mut model = linearisation(params, y0, spool[0], p_supply, &motion);
-        secant_cavitation(params, y0, h, &mut model);
-        secant_relief(params, y0, h, &mut model);
+        if !predictions_clear_of_kinks(params, y0, h, &model.rates) {
+            secant_cavitation(params, y0, h, &mut model);
+            secant_relief(params, y0, h, &mut model);
+        }
         let spool_rate = (spool[1] - spool[0]) / h;
         Linearised { drift: model.d_xs.map(|d| d * spool_rate), model }
     }
@@ -163,6 +165,18 @@ impl Linearised {
 #[inline(never)]
 fn friction_at(params: &CylinderParams, v: f64) -> (f64, f64) {
     friction(params, v)
+}
+
+/// Whether both chambers' explicit predictions `p + h p'` end between the cavitation band's
+/// top and the relief valves' cracking pressure ([`CylinderParams::relief_ceiling`]), where
+/// neither [`secant_cavitation`] nor [`secant_relief`] replaces a slope: one test for most
+/// steps before their detailed ones.
+fn predictions_clear_of_kinks(params: &CylinderParams, y: &Vec4, h: f64, rates: &Vec4) -> bool {
+    let (top, ceiling) = (params.cavitation_band_top(), params.relief_ceiling());
+    [PA, PB].into_iter().all(|k| {
+        let p1 = y[k] + h * rates[k];
+        p1 >= top && p1 <= ceiling
+    })
 }
 
 /// For a step in which a chamber's pressure rises into its relief valve's law, the valve's
