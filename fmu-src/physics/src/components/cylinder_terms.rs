@@ -96,6 +96,11 @@ pub(crate) fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64
     }
     let band = params.dp_cavitation_band;
     let u_raw = (p - params.p_cavitation) / band;
+    if u_raw >= 1.0 {
+        // Above the band, where an emptying chamber spends most of its time: the clamp
+        // below gives exactly these.
+        return (1.0, 0.0);
+    }
     let u = u_raw.clamp(0.0, 1.0);
     let slope = if (0.0..1.0).contains(&u_raw) { (2.0 - 2.0 * u) / band } else { 0.0 };
     (u * (2.0 - u), slope)
