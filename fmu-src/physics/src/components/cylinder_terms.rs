@@ -132,6 +132,14 @@ pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
     (force, slope)
 }
 
+/// [`friction`]'s force alone, out of line: its libm calls (exp, tanh) then save and restore
+/// only the few values live in it, not every value of a caller that is in the middle of
+/// a linearisation (the friction's secant).
+#[inline(never)]
+pub(crate) fn friction_force(params: &CylinderParams, v: f64) -> f64 {
+    friction(params, v).0
+}
+
 /// `(s, b)`: for `stribeck > s` the computed `exp(-stribeck)` is below `b` (`e^-50 =
 /// 1.93e-22`, with room for libm's rounding).
 const STRIBECK_TAIL: (f64, f64) = (50.0, 2.0e-22);
