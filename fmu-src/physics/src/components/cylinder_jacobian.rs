@@ -6,8 +6,8 @@ use crate::components::cylinder::{
     CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V, X,
 };
 use crate::components::cylinder_terms::{
-    at_least, cavitation_factor, chamber_a, chamber_b, chamber_volumes, friction, net_force_with,
-    port_flows, Chamber,
+    at_least, cavitation_factor, chamber_a, chamber_b, chamber_volumes, friction, friction_force,
+    net_force_with, port_flows, Chamber,
 };
 use crate::params::RodPort;
 
@@ -197,7 +197,7 @@ pub(crate) fn secant_friction(params: &CylinderParams, v: f64, h: f64, motion: &
         return;
     }
     let (f0, tangent) = motion.friction;
-    let secant = (friction(params, v1).0 - f0) / (v1 - v0);
+    let secant = (friction_force(params, v1) - f0) / (v1 - v0);
     motion.d_v[V] += (tangent - secant) / params.mass;
 }
 

@@ -47,6 +47,7 @@ struct Derived {
     min_volume: f64,
     cavitation_band_top: f64,
     relief_opening: f64,
+    relief_ceiling: f64,
     friction_excess: f64,
     v_stribeck_squared: f64,
     area_a_per_mass: f64,
@@ -63,6 +64,11 @@ impl Derived {
             min_volume: MIN_VOLUME_FRACTION * load.v_dead,
             cavitation_band_top: load.p_cavitation + load.dp_cavitation_band,
             relief_opening: load.p_tank + load.relief_p_crack,
+            relief_ceiling: if load.relief_p_crack != 0.0 {
+                load.p_tank + load.relief_p_crack
+            } else {
+                f64::INFINITY
+            },
             friction_excess: load.f_static - load.f_coulomb,
             v_stribeck_squared: load.v_stribeck * load.v_stribeck,
             area_a_per_mass: area_a / load.mass,
@@ -145,6 +151,14 @@ impl CylinderParams {
     #[inline(always)]
     pub(crate) fn relief_opening(&self) -> f64 {
         self.derived.relief_opening
+    }
+
+    /// The pressure above which a chamber's relief valve opens: [`Self::relief_opening`],
+    /// or infinity where there are no valves (one comparison tells a step that cannot reach
+    /// a valve's law, with or without them).
+    #[inline(always)]
+    pub(crate) fn relief_ceiling(&self) -> f64 {
+        self.derived.relief_ceiling
     }
 
     /// Whether the chambers have relief valves (`relief_p_crack` 0 removes them).

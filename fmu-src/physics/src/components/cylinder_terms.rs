@@ -96,6 +96,11 @@ pub(crate) fn cavitation_factor(params: &CylinderParams, p: f64, net_inflow: f64
     }
     let band = params.dp_cavitation_band;
     let u_raw = (p - params.p_cavitation) / band;
+    if u_raw >= 1.0 {
+        // Above the band, where an emptying chamber spends most of its time: the clamp
+        // below gives exactly these.
+        return (1.0, 0.0);
+    }
     let u = u_raw.clamp(0.0, 1.0);
     let slope = if (0.0..1.0).contains(&u_raw) { (2.0 - 2.0 * u) / band } else { 0.0 };
     (u * (2.0 - u), slope)
@@ -125,6 +130,14 @@ pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
     let force = dry * th + params.b_viscous * v;
     let slope = ddry_dv * th + dry * (1.0 - th * th) / params.v_friction_smooth + params.b_viscous;
     (force, slope)
+}
+
+/// [`friction`]'s force alone, out of line: its libm calls (exp, tanh) then save and restore
+/// only the few values live in it, not every value of a caller that is in the middle of
+/// a linearisation (the friction's secant).
+#[inline(never)]
+pub(crate) fn friction_force(params: &CylinderParams, v: f64) -> f64 {
+    friction(params, v).0
 }
 
 /// `(s, b)`: for `stribeck > s` the computed `exp(-stribeck)` is below `b` (`e^-50 =
