@@ -202,8 +202,8 @@ pub(crate) fn secant_friction(params: &CylinderParams, v: f64, h: f64, motion: &
 }
 
 /// For a fixed step of `h` whose explicit prediction `p + h p'` moves a chamber's pressure
-/// by more than [`STEEP_APPROACH`] of the drop across its open metering edge (towards the
-/// supply's pressure or the tank's, or past it), that edge's slope in `l` replaced by its
+/// towards the supply's or the tank's pressure across its open metering edge (or past it)
+/// by more than [`STEEP_APPROACH`] of the drop across that edge, the edge's slope in `l` replaced by its
 /// secant from `p` to the prediction where the secant is the steeper. The orifice's law is
 /// a square root of the drop, steepest where the drop vanishes: a chamber driven into the
 /// supply's pressure (the rod stopped by its load) ran past it by tens of kilopascals from
@@ -218,17 +218,19 @@ pub(crate) fn secant_ports(
     l: &mut Linearisation,
 ) {
     let p0 = [y[PA], y[PB]];
-    let p1 = [p0[0] + h * l.rates[PA], p0[1] + h * l.rates[PB]];
+    let moves = [h * l.rates[PA], h * l.rates[PB]];
     // The drops across the open edges (P -> A and B -> T for x_s >= 0, A -> T and P -> B
-    // otherwise), whose size says how far the square root is from its steep part.
-    let drops = if x_s >= 0.0 {
-        [p_supply - p0[0], p0[1] - params.p_tank]
+    // otherwise) and their changes over the prediction. Away from a zero drop the square
+    // root flattens, so its secant is never the steeper: only an approach is looked at.
+    let (drops, changes) = if x_s >= 0.0 {
+        ([p_supply - p0[0], p0[1] - params.p_tank], [-moves[0], moves[1]])
     } else {
-        [p0[0] - params.p_tank, p_supply - p0[1]]
+        ([p0[0] - params.p_tank, p_supply - p0[1]], [moves[0], -moves[1]])
     };
+    let p1 = [p0[0] + moves[0], p0[1] + moves[1]];
     let top = params.cavitation_band_top();
     let steep = |k: usize| {
-        (p1[k] - p0[k]).abs() > STEEP_APPROACH * drops[k].abs() && p0[k] > top && p1[k] > top
+        -changes[k] * drops[k] > STEEP_APPROACH * drops[k] * drops[k] && p0[k] > top && p1[k] > top
     };
     let (steep_a, steep_b) = (steep(0), steep(1));
     if !(steep_a || steep_b) {
