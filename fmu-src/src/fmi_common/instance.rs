@@ -149,7 +149,8 @@ pub(crate) unsafe fn with_instance<M: ModelContract>(
             if inst.version != version {
                 return inst.fail("called with an instance of the other FMI version");
             }
-            inst.trace(|| format!("{func} (state {})", inst.state.name(version)));
+            let state = inst.state;
+            inst.trace(move || format!("{func} (state {})", state.name(version)));
             let allowed = call.allowed();
             if !allowed.contains(inst.state) {
                 let after_error = if inst.state == State::Error {
