@@ -53,8 +53,9 @@ pub trait ModelContract: Clone {
     fn to_bytes(&self) -> Vec<u8>;
     fn from_bytes(bytes: &[u8]) -> Result<Self, String>;
     /// Which input conditions hold (bit i: condition i), legal but rarely meant: the FMI
-    /// layer warns once when each begins.
-    fn warnings(&self) -> u32;
+    /// layer warns once when each begins. Mutable for the reason of
+    /// [`ModelContract::reader`]: asked before every step.
+    fn warnings(&mut self) -> u32;
     /// The log line of condition `index`.
     fn warning_text(&self, index: usize) -> String;
 }

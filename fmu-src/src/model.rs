@@ -186,20 +186,40 @@ impl Model {
         I: IntoIterator<Item = (usize, f64)>,
         I::IntoIter: Clone,
     {
-        let initialized = self.initialized;
-        let state = self.state.get_mut();
+        let may_be_set = &MAY_BE_SET[self.initialized as usize];
         let changes = changes.into_iter();
-        let may_be_set = &MAY_BE_SET[initialized as usize];
-        // Everything that can refuse a value alone is checked before anything is written.
-        let (mut retune, mut changed) = (false, false);
-        let (mut moved_ref, mut moved_rod) = (false, false);
-        for (index, value) in changes.clone() {
+        let mut rest = changes.clone();
+        while let Some((index, value)) = rest.next() {
             if !may_be_set.get(index).is_some_and(|&may| may) {
                 return Err(not_settable(index));
             }
             // A value the model holds already was accepted when it was set (or is a start
             // value): only who may set what is checked again (importers resend unchanged
             // inputs at every step).
+            if self.state.get_mut().values[index].to_bits() != value.to_bits() {
+                return self.set_changed(changes, (index, value), rest);
+            }
+        }
+        // Every value is the one held: nothing to write, no output to rebuild.
+        Ok(())
+    }
+
+    /// [`Model::set_all`] from the first value that differs from the one held, `first`,
+    /// followed by `rest`; `changes` are all of them. Out of line: the checks of new values
+    /// would weigh on a call that sends the values held.
+    #[inline(never)]
+    fn set_changed<I>(&mut self, changes: I, first: (usize, f64), rest: I) -> Result<(), String>
+    where
+        I: Iterator<Item = (usize, f64)> + Clone,
+    {
+        let initialized = self.initialized;
+        let state = self.state.get_mut();
+        // Everything that can refuse a value alone is checked before anything is written.
+        let (mut retune, mut moved_ref, mut moved_rod) = (false, false, false);
+        for (index, value) in std::iter::once(first).chain(rest) {
+            if !MAY_BE_SET[initialized as usize].get(index).is_some_and(|&may| may) {
+                return Err(not_settable(index));
+            }
             if state.values[index].to_bits() == value.to_bits() {
                 continue;
             }
@@ -207,14 +227,9 @@ impl Model {
             if !rule.surely_accepts(value) {
                 VARIABLES[index].check(value)?;
             }
-            changed = true;
             retune |= rule.parameter;
             moved_ref |= index == vr::X_REF;
             moved_rod |= index == vr::X_ROD;
-        }
-        if !changed {
-            // Every value is the one held: nothing to write, no output to rebuild.
-            return Ok(());
         }
         // The geometry is fixed once initialised: a position held fitted it when set.
         if initialized && moved_ref {
@@ -391,9 +406,14 @@ impl Model {
         if !current_time.is_finite() {
             return Some(StepFault::TimeNotFinite);
         }
-        let tolerance = communication_point_tolerance(self.time, step);
-        if (current_time - self.time).abs() > tolerance {
-            return Some(StepFault::OffTime { tolerance });
+        // The tolerance is at least a millionth of the step: only a point further off than
+        // that needs the rest of it worked out.
+        let off = (current_time - self.time).abs();
+        if off > 1e-6 * step {
+            let tolerance = communication_point_tolerance(self.time, step);
+            if off > tolerance {
+                return Some(StepFault::OffTime { tolerance });
+            }
         }
         (current_time + step <= self.time).then_some(StepFault::NoAdvance)
     }
@@ -646,6 +666,12 @@ struct WarningSuspects {
 }
 
 impl WarningSuspects {
+    /// Whether a value test of [`Model::input_warnings`] holds, tested one at a time.
+    #[inline]
+    fn any(v: &[f64; N_VARIABLES]) -> bool {
+        v[vr::I_REF].abs() > VALVE_RATED_CURRENT || v[vr::V_SUPPLY] == 0.0 || v[vr::P_SUPPLY] == 0.0
+    }
+
     /// Which conditions hold, now that a value test held. Out of line: the common step
     /// has no suspect and stops at the tests.
     #[inline(never)]
@@ -827,7 +853,11 @@ impl ModelContract for Model {
     fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
         Model::from_bytes(bytes)
     }
-    fn warnings(&self) -> u32 {
+    fn warnings(&mut self) -> u32 {
+        // The common step has no suspect: its values tested without a borrow of the cell.
+        if !WarningSuspects::any(&self.state.get_mut().values) {
+            return 0;
+        }
         self.input_warnings().iter().enumerate().map(|(i, &holds)| (holds as u32) << i).sum()
     }
     fn warning_text(&self, index: usize) -> String {
