@@ -186,40 +186,20 @@ impl Model {
         I: IntoIterator<Item = (usize, f64)>,
         I::IntoIter: Clone,
     {
-        let may_be_set = &MAY_BE_SET[self.initialized as usize];
+        let initialized = self.initialized;
+        let state = self.state.get_mut();
         let changes = changes.into_iter();
-        let mut rest = changes.clone();
-        while let Some((index, value)) = rest.next() {
+        let may_be_set = &MAY_BE_SET[initialized as usize];
+        // Everything that can refuse a value alone is checked before anything is written.
+        let (mut retune, mut changed) = (false, false);
+        let (mut moved_ref, mut moved_rod) = (false, false);
+        for (index, value) in changes.clone() {
             if !may_be_set.get(index).is_some_and(|&may| may) {
                 return Err(not_settable(index));
             }
             // A value the model holds already was accepted when it was set (or is a start
             // value): only who may set what is checked again (importers resend unchanged
             // inputs at every step).
-            if self.state.get_mut().values[index].to_bits() != value.to_bits() {
-                return self.set_changed(changes, (index, value), rest);
-            }
-        }
-        // Every value is the one held: nothing to write, no output to rebuild.
-        Ok(())
-    }
-
-    /// [`Model::set_all`] from the first value that differs from the one held, `first`,
-    /// followed by `rest`; `changes` are all of them. Out of line: the checks of new values
-    /// would weigh on a call that sends the values held.
-    #[inline(never)]
-    fn set_changed<I>(&mut self, changes: I, first: (usize, f64), rest: I) -> Result<(), String>
-    where
-        I: Iterator<Item = (usize, f64)> + Clone,
-    {
-        let initialized = self.initialized;
-        let state = self.state.get_mut();
-        // Everything that can refuse a value alone is checked before anything is written.
-        let (mut retune, mut moved_ref, mut moved_rod) = (false, false, false);
-        for (index, value) in std::iter::once(first).chain(rest) {
-            if !MAY_BE_SET[initialized as usize].get(index).is_some_and(|&may| may) {
-                return Err(not_settable(index));
-            }
             if state.values[index].to_bits() == value.to_bits() {
                 continue;
             }
@@ -227,9 +207,14 @@ impl Model {
             if !rule.surely_accepts(value) {
                 VARIABLES[index].check(value)?;
             }
+            changed = true;
             retune |= rule.parameter;
             moved_ref |= index == vr::X_REF;
             moved_rod |= index == vr::X_ROD;
+        }
+        if !changed {
+            // Every value is the one held: nothing to write, no output to rebuild.
+            return Ok(());
         }
         // The geometry is fixed once initialised: a position held fitted it when set.
         if initialized && moved_ref {
