@@ -29,8 +29,10 @@ pub trait ModelContract: Clone {
     where
         I: IntoIterator<Item = (usize, f64)>,
         I::IntoIter: Clone;
-    /// Reads values by (known) value reference, outputs up to date.
-    fn reader(&self) -> impl Fn(usize) -> f64 + '_;
+    /// Reads values by (known) value reference, outputs up to date. Mutable: outputs left
+    /// unwritten are written when first read, and the FMI layer holds the instance
+    /// exclusively anyway.
+    fn reader(&mut self) -> impl FnMut(usize) -> f64 + '_;
     /// Ends initialisation: the parameters checked together, the model at equilibrium.
     fn initialize(&mut self) -> Result<(), String>;
     /// Refuses, without touching the model, a step no importer should ask for.
@@ -51,8 +53,9 @@ pub trait ModelContract: Clone {
     fn to_bytes(&self) -> Vec<u8>;
     fn from_bytes(bytes: &[u8]) -> Result<Self, String>;
     /// Which input conditions hold (bit i: condition i), legal but rarely meant: the FMI
-    /// layer warns once when each begins.
-    fn warnings(&self) -> u32;
+    /// layer warns once when each begins. Mutable for the reason of
+    /// [`ModelContract::reader`]: asked before every step.
+    fn warnings(&mut self) -> u32;
     /// The log line of condition `index`.
     fn warning_text(&self, index: usize) -> String;
 }

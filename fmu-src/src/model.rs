@@ -83,6 +83,14 @@ impl State {
         Inputs { a_rod: self.rod_acceleration, ..inputs(&self.values) }
     }
 
+    /// A law output ([`LAW_OUTPUTS`]), written first if the last step left it unwritten.
+    /// Out of line: evaluating the laws would weigh on every read.
+    #[inline(never)]
+    fn law_output(&mut self, index: usize) -> f64 {
+        self.write_laws_if_due();
+        self.values[index]
+    }
+
     /// Writes the outputs the last step left unwritten (the laws' outputs, [`LAW_OUTPUTS`]).
     fn write_laws_if_due(&mut self) {
         if self.laws_due {
@@ -142,13 +150,24 @@ impl Model {
         }
     }
 
+    /// [`Model::reader`] of a model held exclusively (the FMI layer's): the reads take no
+    /// borrow of the state's cell.
+    pub fn reader_mut(&mut self) -> impl FnMut(usize) -> f64 + '_ {
+        if !self.initialized {
+            self.refresh_before_start();
+        }
+        let time = self.time;
+        let state = self.state.get_mut();
+        move |index| match READ_FROM[index] {
+            ReadFrom::Values => state.values[index],
+            ReadFrom::Time => time,
+            ReadFrom::Laws => state.law_output(index),
+        }
+    }
+
     /// A law output ([`LAW_OUTPUTS`]), written first if the last step left it unwritten.
-    /// Out of line: evaluating the laws would weigh on every read.
-    #[inline(never)]
     fn read_law_output(&self, index: usize) -> f64 {
-        let mut state = self.state.borrow_mut();
-        state.write_laws_if_due();
-        state.values[index]
+        self.state.borrow_mut().law_output(index)
     }
 
     /// Stores a parameter or input after checking type and range; see [`Model::set_all`].
@@ -170,19 +189,13 @@ impl Model {
         let initialized = self.initialized;
         let state = self.state.get_mut();
         let changes = changes.into_iter();
+        let may_be_set = &MAY_BE_SET[initialized as usize];
         // Everything that can refuse a value alone is checked before anything is written.
         let (mut retune, mut changed) = (false, false);
         let (mut moved_ref, mut moved_rod) = (false, false);
-        let (mut x_ref, mut x_rod) = (state.values[vr::X_REF], state.values[vr::X_ROD]);
         for (index, value) in changes.clone() {
-            let rule = match SET_RULES.get(index) {
-                Some(rule) if rule.may_be_set(initialized) => rule,
-                _ => return Err(not_settable(index)),
-            };
-            match index {
-                vr::X_REF => x_ref = value,
-                vr::X_ROD => x_rod = value,
-                _ => {}
+            if !may_be_set.get(index).is_some_and(|&may| may) {
+                return Err(not_settable(index));
             }
             // A value the model holds already was accepted when it was set (or is a start
             // value): only who may set what is checked again (importers resend unchanged
@@ -190,6 +203,7 @@ impl Model {
             if state.values[index].to_bits() == value.to_bits() {
                 continue;
             }
+            let rule = &SET_RULES[index];
             if !rule.surely_accepts(value) {
                 VARIABLES[index].check(value)?;
             }
@@ -204,10 +218,10 @@ impl Model {
         }
         // The geometry is fixed once initialised: a position held fitted it when set.
         if initialized && moved_ref {
-            check_x_ref_fits(x_ref, &state.values)?;
+            check_x_ref_fits(last_value(changes.clone(), vr::X_REF), &state.values)?;
         }
         if initialized && moved_rod {
-            check_x_rod_fits(x_rod, &state.values)?;
+            check_x_rod_fits(last_value(changes.clone(), vr::X_ROD), &state.values)?;
         }
         if initialized && retune {
             return state.retune(&mut changes.into_iter(), self.time);
@@ -377,9 +391,14 @@ impl Model {
         if !current_time.is_finite() {
             return Some(StepFault::TimeNotFinite);
         }
-        let tolerance = communication_point_tolerance(self.time, step);
-        if (current_time - self.time).abs() > tolerance {
-            return Some(StepFault::OffTime { tolerance });
+        // The tolerance is at least a millionth of the step: only a point further off than
+        // that needs the rest of it worked out.
+        let off = (current_time - self.time).abs();
+        if off > 1e-6 * step {
+            let tolerance = communication_point_tolerance(self.time, step);
+            if off > tolerance {
+                return Some(StepFault::OffTime { tolerance });
+            }
         }
         (current_time + step <= self.time).then_some(StepFault::NoAdvance)
     }
@@ -456,6 +475,25 @@ impl Model {
         let state = State { values, physics, rod_acceleration, stale: false, laws_due: false };
         Ok(Model { time, initialized, state: RefCell::new(state) })
     }
+}
+
+/// [`Variable::may_be_set`] of every variable, by value reference, before (row 0) and after
+/// (row 1) initialisation: a setter's check of a reference is one byte.
+static MAY_BE_SET: [[bool; N_VARIABLES]; 2] = {
+    let mut table = [[false; N_VARIABLES]; 2];
+    let mut i = 0;
+    while i < N_VARIABLES {
+        table[0][i] = VARIABLES[i].may_be_set(false);
+        table[1][i] = VARIABLES[i].may_be_set(true);
+        i += 1;
+    }
+    table
+};
+
+/// The value that `changes` leave variable `index` with: the last one given for it (the
+/// caller knows there is one).
+fn last_value(changes: impl Iterator<Item = (usize, f64)>, index: usize) -> f64 {
+    changes.filter(|&(i, _)| i == index).last().expect("the variable is among the changes").1
 }
 
 /// Why [`Model::set_all`] refuses to set `index` (a message is only built for a refusal).
@@ -613,6 +651,12 @@ struct WarningSuspects {
 }
 
 impl WarningSuspects {
+    /// Whether a value test of [`Model::input_warnings`] holds, tested one at a time.
+    #[inline]
+    fn any(v: &[f64; N_VARIABLES]) -> bool {
+        v[vr::I_REF].abs() > VALVE_RATED_CURRENT || v[vr::V_SUPPLY] == 0.0 || v[vr::P_SUPPLY] == 0.0
+    }
+
     /// Which conditions hold, now that a value test held. Out of line: the common step
     /// has no suspect and stops at the tests.
     #[inline(never)]
@@ -759,8 +803,8 @@ impl ModelContract for Model {
     {
         self.set_all(changes)
     }
-    fn reader(&self) -> impl Fn(usize) -> f64 + '_ {
-        Model::reader(self)
+    fn reader(&mut self) -> impl FnMut(usize) -> f64 + '_ {
+        Model::reader_mut(self)
     }
     fn initialize(&mut self) -> Result<(), String> {
         Model::initialize(self)
@@ -794,7 +838,11 @@ impl ModelContract for Model {
     fn from_bytes(bytes: &[u8]) -> Result<Self, String> {
         Model::from_bytes(bytes)
     }
-    fn warnings(&self) -> u32 {
+    fn warnings(&mut self) -> u32 {
+        // The common step has no suspect: its values tested without a borrow of the cell.
+        if !WarningSuspects::any(&self.state.get_mut().values) {
+            return 0;
+        }
         self.input_warnings().iter().enumerate().map(|(i, &holds)| (holds as u32) << i).sum()
     }
     fn warning_text(&self, index: usize) -> String {

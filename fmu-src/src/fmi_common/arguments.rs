@@ -18,6 +18,23 @@ pub(crate) unsafe fn opt_str<'a>(p: *const c_char) -> Option<&'a CStr> {
     (!p.is_null()).then(|| unsafe { CStr::from_ptr(p) })
 }
 
+/// Whether `n` elements at `ptr` may be read as a slice: not NULL, aligned, and at most
+/// `isize::MAX` bytes (a bound on `n` fixed at compile time, not a multiplication).
+#[inline]
+fn usable_array<T>(ptr: *const T, n: usize) -> bool {
+    let max_elements = isize::MAX as usize / std::mem::size_of::<T>().max(1);
+    !ptr.is_null() && ptr.is_aligned() && n <= max_elements
+}
+
+/// Both arrays of a getter's or setter's call usable as slices, and not empty: the tests
+/// of [`usable_array`] for both, combined without a branch each.
+#[inline]
+fn usable_pair<V>(vrs: *const u32, values: *const V, n: usize) -> bool {
+    let misaligned = (vrs as usize % align_of::<u32>()) | (values as usize % align_of::<V>());
+    let max_elements = isize::MAX as usize / size_of::<u32>().max(size_of::<V>());
+    (n != 0) & !vrs.is_null() & !values.is_null() & (misaligned == 0) & (n <= max_elements)
+}
+
 impl<M: ModelContract> Instance<M> {
     /// `n` elements at `ptr` as a slice; NULL with `n > 0`, misalignment or an
     /// impossible size → Error naming the argument.
@@ -58,12 +75,56 @@ impl<M: ModelContract> Instance<M> {
         Ok(unsafe { std::slice::from_raw_parts_mut(ptr, n) })
     }
 
+    /// The two arrays of a setter's call, `n` value references and `n` values, as slices.
+    /// Both are tested at once (the common case); an empty or refused pair goes through
+    /// [`Instance::slice`], which names the first argument at fault.
+    ///
+    /// # Safety
+    /// The contract of [`Instance::slice`] for both.
+    #[inline]
+    pub(crate) unsafe fn value_arrays<'a, V>(
+        &self,
+        vrs: *const u32,
+        values: *const V,
+        n: usize,
+    ) -> Result<(&'a [u32], &'a [V]), Status> {
+        if usable_pair(vrs, values, n) {
+            // SAFETY: both non-NULL, aligned, of a possible size (tested); validity per contract.
+            return Ok(unsafe {
+                (std::slice::from_raw_parts(vrs, n), std::slice::from_raw_parts(values, n))
+            });
+        }
+        // SAFETY: forwarded contracts.
+        unsafe { Ok((self.slice("valueReferences", vrs, n)?, self.slice("values", values, n)?)) }
+    }
+
+    /// [`Instance::value_arrays`] of a getter, whose values are written.
+    ///
+    /// # Safety
+    /// The contracts of [`Instance::slice`] for `vrs` and [`Instance::slice_mut`] for `values`.
+    #[inline]
+    pub(crate) unsafe fn value_arrays_mut<'a, V>(
+        &self,
+        vrs: *const u32,
+        values: *mut V,
+        n: usize,
+    ) -> Result<(&'a [u32], &'a mut [V]), Status> {
+        if usable_pair(vrs, values, n) {
+            // SAFETY: as in `value_arrays`, plus exclusive access to `values` per contract.
+            return Ok(unsafe {
+                (std::slice::from_raw_parts(vrs, n), std::slice::from_raw_parts_mut(values, n))
+            });
+        }
+        // SAFETY: forwarded contracts.
+        unsafe {
+            Ok((self.slice("valueReferences", vrs, n)?, self.slice_mut("values", values, n)?))
+        }
+    }
+
     /// Inlined into every getter and setter: the tests alone; the messages are [`refuse_array`].
     #[inline]
     fn check_array<T>(&self, what: &str, ptr: *const T, n: usize) -> Result<(), Status> {
-        let size_ok =
-            n.checked_mul(std::mem::size_of::<T>()).is_some_and(|b| b <= isize::MAX as usize);
-        if ptr.is_null() || !ptr.is_aligned() || !size_ok {
+        if !usable_array(ptr, n) {
             return self.refuse_array(what, ptr.is_null(), ptr.is_aligned(), n);
         }
         Ok(())

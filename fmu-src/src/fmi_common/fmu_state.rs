@@ -43,8 +43,8 @@ impl<M: ModelContract> SavedState<M> {
             1 if stop.is_finite() => Some(stop),
             flag => return Err(format!("state has an invalid stop time ({flag}, {stop})")),
         };
-        let model = M::from_bytes(model)?;
-        check_restored(&model)?;
+        let mut model = M::from_bytes(model)?;
+        check_restored(&mut model)?;
         if model.is_initialized() != matches!(mode, StepMode | Terminated) {
             return Err(format!(
                 "state's FMI mode code {} does not match its model (initialised: {})",
@@ -194,11 +194,11 @@ impl<M: ModelContract> Instance<M> {
 
 /// What the checksum cannot vouch for in a well-formed frame built elsewhere: the time
 /// is finite, parameters and inputs pass the checks of the setters, outputs are finite.
-fn check_restored<M: ModelContract>(model: &M) -> Result<(), String> {
+fn check_restored<M: ModelContract>(model: &mut M) -> Result<(), String> {
     if !model.time().is_finite() {
         return Err(format!("the state's time {} is not finite", model.time()));
     }
-    let read = model.reader();
+    let mut read = model.reader();
     for (index, var) in M::VARIABLES.iter().enumerate() {
         let value = read(index);
         match var.causality {

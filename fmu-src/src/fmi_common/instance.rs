@@ -8,7 +8,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use super::arguments::opt_str;
 use super::fmu_state::SavedState;
-use super::logging::{Logger, Status, LOG_CATEGORIES, LOG_ERROR, N_CATEGORIES};
+use super::logging::{Logger, Status, LOG_ALL, LOG_CATEGORIES, LOG_ERROR, N_CATEGORIES};
 use super::state_machine::{Call, State, Version};
 use crate::contract::ModelContract;
 
@@ -146,22 +146,15 @@ pub(crate) unsafe fn with_instance<M: ModelContract>(
             // SAFETY: `p` is a live instance, exclusively ours for this call.
             let inst = unsafe { &mut *p };
             inst.func = func;
-            if inst.version != version {
-                return inst.fail("called with an instance of the other FMI version");
-            }
-            inst.trace(|| format!("{func} (state {})", inst.state.name(version)));
-            let allowed = call.allowed();
-            if !allowed.contains(inst.state) {
-                let after_error = if inst.state == State::Error {
-                    "; after a failed call only SetFMUState, Reset and FreeInstance go on"
-                } else {
-                    ""
-                };
-                return inst.fail(&format!(
-                    "illegal call sequence: {func} is not allowed in state {} (only in {}){after_error}",
-                    inst.state.name(version),
-                    allowed.names(version)
-                ));
+            // The common call, tested at once: of the instance's version, allowed in its
+            // state, nothing to trace.
+            let usual = inst.version == version
+                && call.allowed().contains(inst.state)
+                && !inst.categories[LOG_ALL];
+            if !usual {
+                if let Err(status) = inst.enter_unusual(version, call) {
+                    return status;
+                }
             }
             match f(inst) {
                 Ok(s) | Err(s) => s,
@@ -177,6 +170,35 @@ pub(crate) unsafe fn with_instance<M: ModelContract>(
             )
         },
     )
+}
+
+impl<M: ModelContract> Instance<M> {
+    /// The checks of [`with_instance`] one by one, for a call that is not the common one:
+    /// another FMI version or a call the table does not allow now (Error + log), or one
+    /// to trace. Out of line: the messages would weigh on every call.
+    #[cold]
+    #[inline(never)]
+    fn enter_unusual(&self, version: Version, call: Call) -> Result<(), Status> {
+        let func = self.func;
+        if self.version != version {
+            return self.error("called with an instance of the other FMI version");
+        }
+        self.trace(|| format!("{func} (state {})", self.state.name(version)));
+        let allowed = call.allowed();
+        if !allowed.contains(self.state) {
+            let after_error = if self.state == State::Error {
+                "; after a failed call only SetFMUState, Reset and FreeInstance go on"
+            } else {
+                ""
+            };
+            return self.error(&format!(
+                "illegal call sequence: {func} is not allowed in state {} (only in {}){after_error}",
+                self.state.name(version),
+                allowed.names(version)
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Frees an instance (NULL or foreign: nothing happens).

@@ -62,6 +62,8 @@ impl<M: ModelContract> Instance<M> {
     /// One communication step. A step the model refuses up front, or one past the stop
     /// time, is a refusal (nothing changes); a step whose computation fails puts the
     /// instance in the Error state (the model itself is left as before the call).
+    /// Inlined into fmi2DoStep/fmi3DoStep: the refusals' messages are built out of line.
+    #[inline(always)]
     pub(crate) fn do_step(&mut self, t: f64, h: f64) -> Result<Status, Status> {
         if let Err(e) = self.model.check_step(t, h) {
             return self.error(&e);
@@ -71,9 +73,7 @@ impl<M: ModelContract> Instance<M> {
             // that ends after stopTime at all.
             let end = t + h;
             if end > stop && end > stop + communication_point_tolerance(stop, h) {
-                return self.error(&format!(
-                    "a step from {t} by {h} ends at {end}, after stopTime {stop}"
-                ));
+                return self.refuse_step_past_stop(t, h, stop);
             }
         }
         let conditions = self.model.warnings();
@@ -86,6 +86,13 @@ impl<M: ModelContract> Instance<M> {
             Ok(()) => Ok(self.warn_about_inputs(t, conditions)),
             Err(e) => self.step_failed(&e),
         }
+    }
+
+    /// Error for a step that would end after the stop time.
+    #[cold]
+    #[inline(never)]
+    fn refuse_step_past_stop(&self, t: f64, h: f64, stop: f64) -> Result<Status, Status> {
+        self.error(&format!("a step from {t} by {h} ends at {}, after stopTime {stop}", t + h))
     }
 
     /// The model's step with its events collected and, once it succeeded, logged. Out of
@@ -114,12 +121,21 @@ impl<M: ModelContract> Instance<M> {
 
     /// Warning (and one logStatusWarning line each) for the input conditions that began
     /// with this step; OK while none began (a lasting condition is not repeated).
+    #[inline]
     fn warn_about_inputs(&mut self, t: f64, conditions: u32) -> Status {
         let began = conditions & !self.warned;
         self.warned = conditions;
         if began == 0 {
             return Status::OK;
         }
+        self.warn_began(t, began)
+    }
+
+    /// The Warning of [`Instance::warn_about_inputs`] once a condition began. Out of line:
+    /// the common step has none.
+    #[cold]
+    #[inline(never)]
+    fn warn_began(&self, t: f64, began: u32) -> Status {
         if self.enabled(LOG_WARNING) {
             for index in (0..M::N_WARNINGS).filter(|i| began & (1 << i) != 0) {
                 let text = self.model.warning_text(index);

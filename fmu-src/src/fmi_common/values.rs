@@ -115,6 +115,32 @@ const fn access_table(variables: &[Variable]) -> [VariableAccess; MAX_VARIABLES]
     table
 }
 
+/// For one accessor, the states in which each variable may be set through it, by value
+/// reference: [`settable_in`] where the accessor serves the variable's type, no state
+/// otherwise. A setter's check of a reference is then one look-up and one bit test.
+const fn settable_through(
+    access: &[VariableAccess; MAX_VARIABLES],
+    serves: u8,
+) -> [States; MAX_VARIABLES] {
+    let mut table = [States::NONE; MAX_VARIABLES];
+    let mut i = 0;
+    while i < MAX_VARIABLES {
+        if access[i].type_bit & serves != 0 {
+            table[i] = access[i].settable;
+        }
+        i += 1;
+    }
+    table
+}
+
+/// The look-up tables of one model and accessor.
+struct AccessTables<M, A>(std::marker::PhantomData<(M, A)>);
+
+impl<M: ModelContract, A: Access> AccessTables<M, A> {
+    const SETTABLE: &'static [States; MAX_VARIABLES] =
+        &settable_through(Instance::<M>::ACCESS, A::SERVES);
+}
+
 /// Type name of a variable as the given FMI version spells it.
 fn type_label(ty: VarType, version: Version) -> String {
     match (ty, version) {
@@ -143,6 +169,12 @@ impl<M: ModelContract> Instance<M> {
         }
     }
 
+    /// Whether value reference `vr` names a variable of a type the accessor serves.
+    #[inline]
+    fn serves<A: Access>(vr: u32) -> bool {
+        Self::ACCESS.get(vr as usize).is_some_and(|access| access.type_bit & A::SERVES != 0)
+    }
+
     /// Error for a value reference that is unknown or not of the accessor's type.
     #[cold]
     fn refuse_reference<T>(&self, vr: u32, accessor: &str) -> Result<T, Status> {
@@ -156,30 +188,33 @@ impl<M: ModelContract> Instance<M> {
         ))
     }
 
-    /// The index of value reference `vr` if it names a variable of a type the accessor
-    /// serves that may be set in the current state (the table's [`settable_in`]).
+    /// Checks that every reference names a variable of a type the accessor serves that may
+    /// be set in the current state (the table's [`settable_in`]): one look-up per reference.
     #[inline]
-    fn resolve_settable<A: Access>(&self, vr: u32) -> Result<usize, Status> {
-        match Self::ACCESS.get(vr as usize) {
-            Some(access)
-                if access.type_bit & A::SERVES != 0 && access.settable.contains(self.state) =>
-            {
-                Ok(vr as usize)
-            }
-            _ => self.refuse_to_set::<A>(vr),
+    fn check_settable<A: Access>(&self, vrs: &[u32]) -> Result<(), Status> {
+        let (table, now) = (AccessTables::<M, A>::SETTABLE, self.state);
+        let settable = |vr: u32| table.get(vr as usize).is_some_and(|states| states.contains(now));
+        if vrs.iter().all(|&vr| settable(vr)) {
+            return Ok(());
         }
+        self.refuse_to_set::<A>(vrs)
     }
 
-    /// Error for a reference [`Instance::resolve_settable`] refused: unknown or of another
-    /// type first, then not settable now.
+    /// Error for the first reference [`Instance::check_settable`] refused: unknown or of
+    /// another type first, then not settable now.
     #[cold]
     #[inline(never)]
-    fn refuse_to_set<A: Access>(&self, vr: u32) -> Result<usize, Status> {
-        let index = self.resolve::<A>(vr)?;
-        self.refuse_setting(index).map(|()| index)
+    fn refuse_to_set<A: Access>(&self, vrs: &[u32]) -> Result<(), Status> {
+        for &vr in vrs {
+            let index = self.resolve::<A>(vr)?;
+            if !AccessTables::<M, A>::SETTABLE[index].contains(self.state) {
+                return self.refuse_setting(index);
+            }
+        }
+        Ok(())
     }
 
-    /// Error for setting variable `index`, which [`Instance::resolve_settable`] refused.
+    /// Error for setting variable `index`, which [`Instance::check_settable`] refused.
     #[cold]
     #[inline(never)]
     fn refuse_setting(&self, index: usize) -> Result<(), Status> {
@@ -215,7 +250,7 @@ impl<M: ModelContract> Instance<M> {
     /// # Safety
     /// Array contracts of [`Instance::slice`] / [`Instance::slice_mut`].
     pub(crate) unsafe fn get_values<A: Access>(
-        &self,
+        &mut self,
         vrs: *const u32,
         n_vr: usize,
         values: *mut A::C,
@@ -227,12 +262,15 @@ impl<M: ModelContract> Instance<M> {
             ));
         }
         // SAFETY: forwarded array contracts.
-        let (vrs, out) = unsafe {
-            (self.slice("valueReferences", vrs, n_vr)?, self.slice_mut("values", values, n_values)?)
-        };
-        let read = self.model.reader();
+        let (vrs, out) = unsafe { self.value_arrays_mut(vrs, values, n_vr)? };
+        // The values before a refused reference are read, as they always were.
+        let mut read = self.model.reader();
         for (&vr, slot) in vrs.iter().zip(out.iter_mut()) {
-            *slot = A::to_c(read(self.resolve::<A>(vr)?));
+            if !Self::serves::<A>(vr) {
+                drop(read);
+                return self.refuse_reference(vr, A::NAME);
+            }
+            *slot = A::to_c(read(vr as usize));
         }
         Ok(Status::OK)
     }
@@ -255,12 +293,8 @@ impl<M: ModelContract> Instance<M> {
             ));
         }
         // SAFETY: forwarded array contracts.
-        let (vrs, vals) = unsafe {
-            (self.slice("valueReferences", vrs, n_vr)?, self.slice("values", values, n_values)?)
-        };
-        for &vr in vrs {
-            self.resolve_settable::<A>(vr)?;
-        }
+        let (vrs, vals) = unsafe { self.value_arrays(vrs, values, n_vr)? };
+        self.check_settable::<A>(vrs)?;
         // All or nothing; tunable parameters set in Step Mode rebuild the physics here.
         let result = self
             .model
@@ -291,9 +325,7 @@ impl<M: ModelContract> Instance<M> {
                 self.slice("value", values, n_vr)?,
             )
         };
-        for &vr in vrs {
-            self.resolve_settable::<Real2>(vr)?;
-        }
+        self.check_settable::<Real2>(vrs)?;
         let mut model = self.model.clone();
         for ((&vr, &order), &value) in vrs.iter().zip(orders).zip(values) {
             if let Err(e) = model.set_input_derivative(vr as usize, order, value) {
