@@ -43,8 +43,7 @@ impl Physics {
     #[inline]
     fn clocks_idle(&self) -> bool {
         let a = &self.actuator;
-        a.hbridge.events_until(&a.params.hbridge, f64::INFINITY) == 0
-            && a.outer.events_until(&a.params.loops, f64::INFINITY) == 0
+        !a.hbridge.clocked() && !a.outer.clocked()
     }
 
     /// Advances from `t_start` by `step` seconds with `inputs` held constant.

@@ -38,7 +38,8 @@ pub(crate) fn newton_in_bracket(
 pub(crate) fn time_to_close(gap: f64, v: f64, a: f64) -> Option<f64> {
     let discriminant = v * v + 2.0 * a * gap;
     let t = 2.0 * gap / (v + discriminant.sqrt());
-    (discriminant >= 0.0 && t > 0.0 && t.is_finite()).then_some(t)
+    // `0 < t < inf` is `t > 0 && t.is_finite()` in two comparisons.
+    (discriminant >= 0.0 && t > 0.0 && t < f64::INFINITY).then_some(t)
 }
 
 #[cfg(test)]
