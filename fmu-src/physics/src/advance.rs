@@ -43,7 +43,8 @@ impl Physics {
     #[inline]
     fn clocks_idle(&self) -> bool {
         let a = &self.actuator;
-        !a.hbridge.clocked() && !a.outer.clocked()
+        a.hbridge.events_until(&a.params.hbridge, f64::INFINITY) == 0
+            && a.outer.events_until(&a.params.loops, f64::INFINITY) == 0
     }
 
     /// Advances from `t_start` by `step` seconds with `inputs` held constant.
@@ -54,8 +55,9 @@ impl Physics {
         t_start: f64,
         step: f64,
     ) -> Result<StepEvents, String> {
-        let clocks_idle = self.clocks_idle();
         let a = &self.actuator;
+        // As `clocks_idle`, from the flags alone (no event counts).
+        let clocks_idle = !a.hbridge.clocked() && !a.outer.clocked();
         let saved = (a.z, a.mode, a.stops, a.hbridge, a.outer, a.cylinder, a.p_supply);
         // A piston through the end of the cylinder is a broken state, refused like any error.
         let result = self.advance_inner(inputs, t_start, step).and_then(|events| {

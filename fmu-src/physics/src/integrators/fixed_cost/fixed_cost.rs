@@ -57,6 +57,10 @@ pub(crate) struct FixedCostIntegrator {
     /// The communication step the propagators were built ahead for, to build them again
     /// when a retune changes the systems.
     prepared_for: Option<f64>,
+    /// The last segment's span (its bits) and its cut, `n` internal steps of `h`: the
+    /// spans repeat (the communication step, the loop period), and the cut costs two
+    /// divisions and a rounding.
+    last_cut: (u64, usize, f64),
 }
 
 impl FixedCostIntegrator {
@@ -67,12 +71,27 @@ impl FixedCostIntegrator {
             ladders: DyadicLadders::new(h_internal),
             slew_exits: slew_end::slew_exits(&actuator.systems),
             prepared_for: None,
+            // The cut of a NaN span: a key no other span matches.
+            last_cut: (f64::NAN.to_bits(), 1, f64::NAN),
         }
     }
 
     /// How many internal steps cut a segment of `span`.
     fn internal_steps(&self, span: f64) -> usize {
         augmented_state::ceil_count(span / self.h_internal).max(1)
+    }
+
+    /// A segment of `span` cut into `n` internal steps of `h`: `(n, h)`.
+    #[inline]
+    fn cut(&mut self, span: f64) -> (usize, f64) {
+        let (bits, n, h) = self.last_cut;
+        if bits == span.to_bits() {
+            return (n, h);
+        }
+        let n = self.internal_steps(span);
+        let h = span / n as f64;
+        self.last_cut = (span.to_bits(), n, h);
+        (n, h)
     }
 }
 
@@ -84,8 +103,7 @@ impl Integrator for FixedCostIntegrator {
         inputs: &HeldInputs,
         events: &mut StepEvents,
     ) -> Result<(), String> {
-        let n = self.internal_steps(segment.span);
-        let h = segment.span / n as f64;
+        let (n, h) = self.cut(segment.span);
         // An internal step's end is the next one's start (the cylinder's step leaves the
         // driver and valve as they are).
         let mut start = spool_position(actuator);
@@ -157,6 +175,18 @@ impl FixedCostIntegrator {
         if self.linear_lane(actuator, h)? {
             return Ok(());
         }
+        self.switching_step(actuator, h, events)
+    }
+
+    /// [`Self::driver_and_valve`] off the linear lane. Out of line: its bookkeeping would
+    /// otherwise set up its frame on every internal step, the lane's too.
+    #[inline(never)]
+    fn switching_step(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
         let (mut left, mut ahead) = (h, None);
         let mut first = 0;
         if let Some((tau, end)) = self.slew_from_start(actuator, h, events)? {
