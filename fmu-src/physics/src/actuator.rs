@@ -172,7 +172,7 @@ impl Actuator {
     /// the mode chosen again.
     /// Inline: most calls find nothing new or start a slew; the rest go out of line, so
     /// that their stack frame is not every call's.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn follow_command(&mut self, inputs: &HeldInputs, events: &mut StepEvents) {
         let i_cmd = self.current_command(inputs);
         let same_rail = self.z[RAIL] == inputs.rail;
