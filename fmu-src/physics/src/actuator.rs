@@ -176,7 +176,7 @@ impl Actuator {
     pub(crate) fn follow_command(&mut self, inputs: &HeldInputs, events: &mut StepEvents) {
         let i_cmd = self.current_command(inputs);
         let same_rail = self.z[RAIL] == inputs.rail;
-        if self.z[I_CMD] == i_cmd && same_rail || same_rail && self.starts_a_slew(i_cmd) {
+        if same_rail && (self.z[I_CMD] == i_cmd || self.starts_a_slew(i_cmd)) {
             return;
         }
         self.settle_on_command(i_cmd, inputs.rail, events);

@@ -107,8 +107,9 @@ impl Integrator for FixedCostIntegrator {
         // An internal step's end is the next one's start (the cylinder's step leaves the
         // driver and valve as they are).
         let mut start = spool_position(actuator);
+        let mut output_rate = None;
         for _ in 0..n {
-            self.driver_and_valve(actuator, h, events)?;
+            output_rate = self.driver_and_valve(actuator, h, output_rate, events)?;
             let end = spool_position(actuator);
             lean_cylinder::step(actuator, [start, end], h, inputs)?;
             start = end;
@@ -166,16 +167,20 @@ impl FixedCostIntegrator {
     /// taken in the new one; after [`MAX_SWITCHES`] of those the mode is decided at the
     /// step's end alone. A slew from the step's start into the linear mode (a new command:
     /// a step of it, or a loop's sample) is placed exactly first ([`Self::slew_from_start`]).
+    /// `output_rate` and the result: the linear output's rate at the state where the linear
+    /// lane left it, passed on to the segment's next internal step (see [`Self::linear_lane`]).
     fn driver_and_valve(
         &mut self,
         actuator: &mut Actuator,
         h: f64,
+        output_rate: Option<f64>,
         events: &mut StepEvents,
-    ) -> Result<(), String> {
-        if self.linear_lane(actuator, h)? {
-            return Ok(());
+    ) -> Result<Option<f64>, String> {
+        if let Some(rate) = self.linear_lane(actuator, h, output_rate)? {
+            return Ok(Some(rate));
         }
-        self.switching_step(actuator, h, events)
+        self.switching_step(actuator, h, events)?;
+        Ok(None)
     }
 
     /// [`Self::driver_and_valve`] off the linear lane. Out of line: its bookkeeping would
@@ -224,12 +229,20 @@ impl FixedCostIntegrator {
     /// its bookkeeping: a PI driver free of valve stops that stays in its linear mode over
     /// the step, from the step's start or after a brief slew into it from there (a loop's
     /// sample, a new command: taken as a jump, [`jumped_to_linear`]). The same arithmetic in
-    /// the same order, so the same bits. `false`, with nothing changed, for any other step:
+    /// the same order, so the same bits. `None`, with nothing changed, for any other step:
     /// a slew that is not brief, a state within the tolerance of a rail, a guard reached.
-    fn linear_lane(&mut self, actuator: &mut Actuator, h: f64) -> Result<bool, String> {
+    /// `known_rate`: the output's rate at the actuator's state where the lane left it in
+    /// the segment's last internal step (its end guards computed it; the cylinder's step
+    /// leaves that state as it is). Taking the lane, the output's rate at its end.
+    fn linear_lane(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        known_rate: Option<f64>,
+    ) -> Result<Option<f64>, String> {
         let c = &actuator.params;
         if !pi_driver_free_of_stops(c) {
-            return Ok(false);
+            return Ok(None);
         }
         let start = match actuator.mode {
             Mode::Linear => actuator.z,
@@ -237,22 +250,27 @@ impl FixedCostIntegrator {
                 Some(tau) if tau <= h * BRIEF_SLEW => {
                     jumped_to_linear(c, &actuator.hbridge, actuator.mode, tau, &actuator.z)
                 }
-                _ => return Ok(false),
+                _ => return Ok(None),
             },
-            _ => return Ok(false),
+            _ => return Ok(None),
         };
         let linear = &actuator.systems[Mode::Linear.index()];
-        if !driver::surely_linear(c, &linear.a, &start) {
-            return Ok(false);
+        let start_rate = match (actuator.mode, known_rate) {
+            (Mode::Linear, Some(rate)) => rate,
+            _ => driver::output_rate(&linear.a, &start),
+        };
+        if !driver::surely_linear(c, &start, start_rate) {
+            return Ok(None);
         }
         let key = system_key(Mode::Linear, valve::Stops::default());
         let mut end = self.whole.propagate(key, linear, h, &start)?;
         driver::project_onto(c, &actuator.hbridge, &mut end, Mode::Linear);
-        if driver::linear_guard_values(c, &linear.a, &end).iter().any(|&g| g >= 0.0) {
-            return Ok(false);
+        let end_rate = driver::output_rate(&linear.a, &end);
+        if driver::linear_guards_at_rate(c, &end, end_rate).iter().any(|&g| g >= 0.0) {
+            return Ok(None);
         }
         (actuator.mode, actuator.z) = (Mode::Linear, end);
-        Ok(true)
+        Ok(Some(end_rate))
     }
 
     /// A slew from the internal step's start that ends inside it in the linear mode, without
