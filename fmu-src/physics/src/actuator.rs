@@ -170,19 +170,28 @@ impl Actuator {
     /// Takes a new current command or rail into the state. A state that ended the last step
     /// is consistent with its mode; only a new command or rail (or a restored state) needs
     /// the mode chosen again.
+    /// Inline: most calls find nothing new or start a slew; the rest go out of line, so
+    /// that their stack frame is not every call's.
+    #[inline(always)]
     pub(crate) fn follow_command(&mut self, inputs: &HeldInputs, events: &mut StepEvents) {
         let i_cmd = self.current_command(inputs);
-        if self.z[I_CMD] != i_cmd && self.z[RAIL] == inputs.rail && self.starts_a_slew(i_cmd) {
+        let same_rail = self.z[RAIL] == inputs.rail;
+        if same_rail && (self.z[I_CMD] == i_cmd || self.starts_a_slew(i_cmd)) {
             return;
         }
-        if self.z[I_CMD] != i_cmd || self.z[RAIL] != inputs.rail {
-            let mut z = self.z;
-            driver::apply_inputs(&self.params, &mut z, i_cmd, inputs.rail);
-            let before = self.mode;
-            self.settle(&mut z);
-            driver::count_switch(events, before, self.mode);
-            self.z = z;
-        }
+        self.settle_on_command(i_cmd, inputs.rail, events);
+    }
+
+    /// [`Actuator::follow_command`] of a new command or rail the long way: the mode chosen
+    /// again.
+    #[inline(never)]
+    fn settle_on_command(&mut self, i_cmd: f64, rail: f64, events: &mut StepEvents) {
+        let mut z = self.z;
+        driver::apply_inputs(&self.params, &mut z, i_cmd, rail);
+        let before = self.mode;
+        self.settle(&mut z);
+        driver::count_switch(events, before, self.mode);
+        self.z = z;
     }
 
     /// The most common new command, a loop's sample or a command's next value to a PI
@@ -191,6 +200,7 @@ impl Actuator {
     /// outcome of [`driver::consistent_mode`]'s first tests, which [`Actuator::settle`]
     /// would reach the long way), and the new command is taken with no more work.
     /// `false`, nothing changed, for any other case.
+    #[inline]
     fn starts_a_slew(&mut self, i_cmd: f64) -> bool {
         let c = &self.params;
         if self.mode != Mode::Linear || !pi_driver_free_of_stops(c) {

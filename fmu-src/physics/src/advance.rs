@@ -2,11 +2,14 @@
 //! loops cut the step; between them the chosen integrator evolves the actuator's continuous
 //! part ([`crate::integrators::seam`]).
 
+use crate::actuator::Actuator;
 use crate::components::cylinder;
 use crate::components::valve;
 use crate::events::StepEvents;
 use crate::held_inputs::HeldInputs;
+use crate::integrators::chosen::ChosenIntegrator;
 use crate::integrators::seam::{Integrator, Segment};
+use crate::numerics::augmented_state::all_finite;
 use crate::numerics::augmented_state::I;
 use crate::numerics::augmented_state::I_CMD;
 use crate::numerics::augmented_state::RAIL;
@@ -55,8 +58,9 @@ impl Physics {
         t_start: f64,
         step: f64,
     ) -> Result<StepEvents, String> {
-        let clocks_idle = self.clocks_idle();
         let a = &self.actuator;
+        // As `clocks_idle`, from the flags alone (no event counts).
+        let clocks_idle = !a.hbridge.clocked() && !a.outer.clocked();
         let saved = (a.z, a.mode, a.stops, a.hbridge, a.outer, a.cylinder, a.p_supply);
         // A piston through the end of the cylinder is a broken state, refused like any error.
         let result = self.advance_inner(inputs, t_start, step).and_then(|events| {
@@ -95,53 +99,90 @@ impl Physics {
         let inputs = HeldInputs::new(&a.params, inputs);
         a.p_supply = inputs.p_supply;
         a.follow_command(&inputs, &mut events);
-        let t_end = t_start + step;
-        let p = a.params;
-        let time_events =
-            a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);
-        if time_events > MAX_TIME_EVENTS_PER_STEP {
-            return Err(format!(
-                "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
-            ));
-        }
+        let p = &a.params;
         // Time events within a hair of the step end (rounding of t_start + step, either
         // side) belong to it and fire at its end: no segment of a few ulp after them, each
         // a full evolution for nothing.
         let period = 1.0 / p.loops.f_sample;
         let slack = 1e-9 * step.min(p.hbridge.period()).min(period);
-        let mut t = t_start;
-        loop {
-            let t_bridge = a.hbridge.next_event(&p.hbridge);
-            let t_loop = a.outer.next_event(&p.loops);
-            let t_event = t_bridge.min(t_loop);
-            let fire = t_event <= t_end + slack;
-            let segment_end = if fire && t_event < t_end - slack { t_event } else { t_end };
-            if segment_end > t {
-                let whole = t == t_start && segment_end == t_end;
-                let span = nominal_span(segment_end - t, [step, period], slack);
-                integrator.evolve(a, Segment { span, whole }, &inputs, &mut events)?;
-                t = segment_end;
-            }
-            if !fire {
-                break;
-            }
-            if t_loop <= t_bridge {
-                // The outer loop samples first, so a bridge sample at the same instant sees its command.
-                let measured = match p.loops.mode {
-                    ControlMode::Flow => valve::no_load_flow(&p, a.z[XS]),
-                    _ => a.cylinder.state.x,
-                };
-                a.outer.sample(&p.loops, inputs.reference, measured);
-                a.follow_command(&inputs, &mut events);
-            } else {
-                a.hbridge.fire(&p.hbridge, a.z[I], a.z[I_CMD], p.r_total, a.z[RAIL]);
-                a.z[U] = a.hbridge.output(&p.hbridge, a.z[RAIL]);
-            }
+        let times = StepTimes { t_start, t_end: t_start + step, step, period, slack };
+        if a.hbridge.clocked() || a.outer.clocked() {
+            through_time_events(a, integrator, &inputs, &times, &mut events)?;
+        } else if times.t_end > t_start {
+            // No clock runs: the step is one segment (the loop below would find no event).
+            let span = times.nominal_span(times.t_end - t_start);
+            integrator.evolve(a, Segment { span, whole: true }, &inputs, &mut events)?;
         }
-        if !a.z.iter().all(|x| x.is_finite()) {
+        if !all_finite(&a.z) {
             return Err("the state became non-finite; step refused".into());
         }
         Ok(events)
+    }
+}
+
+/// The instants of one communication step and the spans its segments are measured by.
+struct StepTimes {
+    t_start: f64,
+    t_end: f64,
+    step: f64,
+    /// The outer loop's sample period.
+    period: f64,
+    /// How close to the step's end a time event belongs to it (see `advance_inner`).
+    slack: f64,
+}
+
+impl StepTimes {
+    fn nominal_span(&self, span: f64) -> f64 {
+        nominal_span(span, [self.step, self.period], self.slack)
+    }
+}
+
+/// The step cut at the time events of the H-bridge and the outer loop: the segments
+/// between them evolved, each event fired at its instant.
+fn through_time_events(
+    a: &mut Actuator,
+    integrator: &mut ChosenIntegrator,
+    inputs: &HeldInputs,
+    times: &StepTimes,
+    events: &mut StepEvents,
+) -> Result<(), String> {
+    let StepTimes { t_start, t_end, step, slack, .. } = *times;
+    let p = a.params;
+    let time_events =
+        a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);
+    if time_events > MAX_TIME_EVENTS_PER_STEP {
+        return Err(format!(
+            "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
+        ));
+    }
+    let mut t = t_start;
+    loop {
+        let t_bridge = a.hbridge.next_event(&p.hbridge);
+        let t_loop = a.outer.next_event(&p.loops);
+        let t_event = t_bridge.min(t_loop);
+        let fire = t_event <= t_end + slack;
+        let segment_end = if fire && t_event < t_end - slack { t_event } else { t_end };
+        if segment_end > t {
+            let whole = t == t_start && segment_end == t_end;
+            let span = times.nominal_span(segment_end - t);
+            integrator.evolve(a, Segment { span, whole }, inputs, events)?;
+            t = segment_end;
+        }
+        if !fire {
+            return Ok(());
+        }
+        if t_loop <= t_bridge {
+            // The outer loop samples first, so a bridge sample at the same instant sees its command.
+            let measured = match p.loops.mode {
+                ControlMode::Flow => valve::no_load_flow(&p, a.z[XS]),
+                _ => a.cylinder.state.x,
+            };
+            a.outer.sample(&p.loops, inputs.reference, measured);
+            a.follow_command(inputs, events);
+        } else {
+            a.hbridge.fire(&p.hbridge, a.z[I], a.z[I_CMD], p.r_total, a.z[RAIL]);
+            a.z[U] = a.hbridge.output(&p.hbridge, a.z[RAIL]);
+        }
     }
 }
 

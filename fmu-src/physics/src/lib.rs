@@ -41,6 +41,7 @@ pub use params::{
     VALVE_RATED_CURRENT,
 };
 pub use physics::Physics;
+use physics::StepEnd;
 pub use state::bytes;
 
 use actuator::Actuator;
@@ -55,7 +56,7 @@ impl Physics {
         let actuator = Actuator::start(params, inputs, start_time)?;
         let integrator = ChosenIntegrator::new(params, &actuator);
         let rod_force_mean = actuator.rod_force();
-        Ok(Physics { actuator, integrator, resting: None, rod_force_mean, rod_force_end: None })
+        Ok(Physics { actuator, integrator, resting: None, rod_force_mean, step_end: None })
     }
 
     /// Builds ahead the propagators that a first step of `step` seconds with these inputs
@@ -134,17 +135,20 @@ impl Physics {
     ) -> Result<StepEvents, String> {
         let c = &self.actuator.params.cylinder;
         c.check_supply(inputs.p_supply)?;
-        let relief_before = cylinder::relief_open(c, &self.actuator.cylinder.state);
-        let force_before = match self.rod_force_end {
-            Some(force) if c.port == RodPort::Force => force,
+        let relief_before = match self.step_end {
+            Some(end) => end.relief_open,
+            None => cylinder::relief_open(c, &self.actuator.cylinder.state),
+        };
+        let force_before = match self.step_end {
+            Some(end) if c.port == RodPort::Force => end.rod_force,
             _ => self.actuator.take_rod_motion(inputs)?,
         };
         let mut events = self.advance(inputs, t_start, step)?;
         let force_after = self.actuator.rod_force();
         self.rod_force_mean = 0.5 * (force_before + force_after);
-        self.rod_force_end = Some(force_after);
         let a = &self.actuator;
         let relief_after = cylinder::relief_open(&a.params.cylinder, &a.cylinder.state);
+        self.step_end = Some(StepEnd { rod_force: force_after, relief_open: relief_after });
         events.relief_opened = [0, 1].map(|k| relief_after[k] && !relief_before[k]);
         Ok(events)
     }

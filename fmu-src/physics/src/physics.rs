@@ -18,10 +18,19 @@ pub struct Physics {
     /// The force on the rod averaged over the last step (an output, carried across a saved
     /// state by the value array, so not part of the state bytes).
     pub(crate) rod_force_mean: f64,
-    /// With the force port, the force on the rod at the state the last step ended in (a
-    /// pure cache: the next step starts from that state, so its starting force is this one;
-    /// `None` where nothing is known, after a retune or a restore).
-    pub(crate) rod_force_end: Option<f64>,
+    /// What the last step ended in, which the next one starts from (a pure cache: `None`
+    /// where nothing is known, after a retune or a restore).
+    pub(crate) step_end: Option<StepEnd>,
+}
+
+/// The state a step ended in as the next step's start reads it.
+#[derive(Clone, Copy)]
+pub(crate) struct StepEnd {
+    /// The force on the rod (with the force port the next step's starting force; the
+    /// motion port moves the rod first).
+    pub(crate) rod_force: f64,
+    /// Which relief valves were open (the rod's motion does not move them).
+    pub(crate) relief_open: [bool; 2],
 }
 
 /// Inputs and step size as bits (see `Physics::resting`).

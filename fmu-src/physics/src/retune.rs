@@ -68,7 +68,7 @@ impl Physics {
         }
         // The same step again may no longer change nothing, nor the rod's force be the same.
         self.resting = None;
-        self.rod_force_end = None;
+        self.step_end = None;
         Ok(())
     }
 }

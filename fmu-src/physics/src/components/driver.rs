@@ -143,8 +143,19 @@ pub(crate) fn mode_guards(c: &Coefficients, mode: Mode, a: &Mat) -> Vec<Vector> 
 /// (the law has no constant term; a test holds them to it).
 #[inline]
 pub(crate) fn linear_guard_values(c: &Coefficients, a: &Mat, z: &Vector) -> [f64; 4] {
-    let du = row_dot(a, U, z);
+    linear_guards_at_rate(c, z, output_rate(a, z))
+}
+
+/// [`linear_guard_values`] where the output's rate `du` ([`output_rate`]) is known.
+#[inline]
+pub(crate) fn linear_guards_at_rate(c: &Coefficients, z: &Vector, du: f64) -> [f64; 4] {
     [z[U] - z[RAIL], -z[U] - z[RAIL], du - c.slew_rate, -du - c.slew_rate]
+}
+
+/// The output's rate in the linear mode at `z`, `a` that mode's dynamics.
+#[inline]
+pub(crate) fn output_rate(a: &Mat, z: &Vector) -> f64 {
+    row_dot(a, U, z)
 }
 
 /// How far (V) a PI driver's output may be from the law's value and still count as on it.
@@ -154,14 +165,13 @@ fn law_tolerance(vmax: f64) -> f64 {
 }
 
 /// Whether [`consistent_mode`] puts a PI driver at `z`, on the linear mode's manifold
-/// (`z[U]` its law's value), in the linear mode, `a` that mode's dynamics: clear of the
-/// rails by more than its tolerance, and the output's rate within the slew rate. Its tests
-/// in its order, for the one outcome (`false`: ask it).
+/// (`z[U]` its law's value), in the linear mode, `du` the output's rate there in that mode
+/// ([`output_rate`]): clear of the rails by more than its tolerance, and the output's rate
+/// within the slew rate. Its tests in its order, for the one outcome (`false`: ask it).
 #[inline]
-pub(crate) fn surely_linear(c: &Coefficients, a: &Mat, z: &Vector) -> bool {
+pub(crate) fn surely_linear(c: &Coefficients, z: &Vector, du: f64) -> bool {
     let (vmax, u_lin) = (z[RAIL], u_lin(c, z));
     let tol = law_tolerance(vmax);
-    let du = row_dot(a, U, z);
     // A NaN is not surely linear: the general way refuses it.
     u_lin < vmax - tol && u_lin > -vmax + tol && (-c.slew_rate..=c.slew_rate).contains(&du)
 }

@@ -77,6 +77,12 @@ impl HBridgeState {
         d
     }
 
+    /// Whether the bridge switches and samples at all (there is one).
+    #[inline]
+    pub(crate) fn clocked(&self) -> bool {
+        self.active
+    }
+
     /// Time of the next switching or sampling instant (infinite without an H-bridge).
     pub(crate) fn next_event(&self, p: &HBridgeParams) -> f64 {
         if !self.active {

@@ -58,6 +58,12 @@ impl OuterLoop {
         }
     }
 
+    /// Whether the loop samples at all (a current-mode actuator has none).
+    #[inline]
+    pub(crate) fn clocked(&self) -> bool {
+        self.active
+    }
+
     pub(crate) fn next_event(&self, p: &LoopParams) -> f64 {
         if self.active {
             p.sample_time(self.next_sample)

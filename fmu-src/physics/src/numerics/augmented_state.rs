@@ -80,6 +80,14 @@ pub(crate) fn dot(a: &Vector, b: &Vector) -> f64 {
     lanes[0] + lanes[1] + a[N - 1] * b[N - 1]
 }
 
+/// Every entry of `z` is finite: `z . 0` is then 0, and NaN where an entry is infinite or
+/// NaN (its product with 0 is NaN). Straight-line in [`dot`]'s two lanes, where testing
+/// each entry is a branch per entry.
+#[inline]
+pub(crate) fn all_finite(z: &Vector) -> bool {
+    dot(z, &Vector::zeros()) == 0.0
+}
+
 /// Row `r` of `a` dotted with `z`, read down the column-major storage in two lanes (as
 /// [`dot`]) without gathering the row first.
 #[inline]

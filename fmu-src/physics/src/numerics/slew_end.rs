@@ -94,8 +94,12 @@ pub(crate) fn end_time(c: &Coefficients, [d, d_rate]: &[Vector; 2], z0: &Vector)
         return None;
     }
     // The same root with every sign turned where the gap is negative (exact: bit for bit).
-    let side = gap.signum();
-    time_to_close(side * gap, side * w0, side * w1)
+    // A NaN gap has no root either way.
+    if gap < 0.0 {
+        time_to_close(-gap, -w0, -w1)
+    } else {
+        time_to_close(gap, w0, w1)
+    }
 }
 
 #[cfg(test)]

@@ -57,6 +57,10 @@ pub(crate) struct FixedCostIntegrator {
     /// The communication step the propagators were built ahead for, to build them again
     /// when a retune changes the systems.
     prepared_for: Option<f64>,
+    /// The last segment's span (its bits) and its cut, `n` internal steps of `h`: the
+    /// spans repeat (the communication step, the loop period), and the cut costs two
+    /// divisions and a rounding.
+    last_cut: (u64, usize, f64),
 }
 
 impl FixedCostIntegrator {
@@ -67,12 +71,27 @@ impl FixedCostIntegrator {
             ladders: DyadicLadders::new(h_internal),
             slew_exits: slew_end::slew_exits(&actuator.systems),
             prepared_for: None,
+            // The cut of a NaN span: a key no other span matches.
+            last_cut: (f64::NAN.to_bits(), 1, f64::NAN),
         }
     }
 
     /// How many internal steps cut a segment of `span`.
     fn internal_steps(&self, span: f64) -> usize {
         augmented_state::ceil_count(span / self.h_internal).max(1)
+    }
+
+    /// A segment of `span` cut into `n` internal steps of `h`: `(n, h)`.
+    #[inline]
+    fn cut(&mut self, span: f64) -> (usize, f64) {
+        let (bits, n, h) = self.last_cut;
+        if bits == span.to_bits() {
+            return (n, h);
+        }
+        let n = self.internal_steps(span);
+        let h = span / n as f64;
+        self.last_cut = (span.to_bits(), n, h);
+        (n, h)
     }
 }
 
@@ -84,13 +103,13 @@ impl Integrator for FixedCostIntegrator {
         inputs: &HeldInputs,
         events: &mut StepEvents,
     ) -> Result<(), String> {
-        let n = self.internal_steps(segment.span);
-        let h = segment.span / n as f64;
+        let (n, h) = self.cut(segment.span);
         // An internal step's end is the next one's start (the cylinder's step leaves the
         // driver and valve as they are).
         let mut start = spool_position(actuator);
+        let mut output_rate = None;
         for _ in 0..n {
-            self.driver_and_valve(actuator, h, events)?;
+            output_rate = self.driver_and_valve(actuator, h, output_rate, events)?;
             let end = spool_position(actuator);
             lean_cylinder::step(actuator, [start, end], h, inputs)?;
             start = end;
@@ -148,15 +167,31 @@ impl FixedCostIntegrator {
     /// taken in the new one; after [`MAX_SWITCHES`] of those the mode is decided at the
     /// step's end alone. A slew from the step's start into the linear mode (a new command:
     /// a step of it, or a loop's sample) is placed exactly first ([`Self::slew_from_start`]).
+    /// `output_rate` and the result: the linear output's rate at the state where the linear
+    /// lane left it, passed on to the segment's next internal step (see [`Self::linear_lane`]).
     fn driver_and_valve(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        output_rate: Option<f64>,
+        events: &mut StepEvents,
+    ) -> Result<Option<f64>, String> {
+        if let Some(rate) = self.linear_lane(actuator, h, output_rate)? {
+            return Ok(Some(rate));
+        }
+        self.switching_step(actuator, h, events)?;
+        Ok(None)
+    }
+
+    /// [`Self::driver_and_valve`] off the linear lane. Out of line: its bookkeeping would
+    /// otherwise set up its frame on every internal step, the lane's too.
+    #[inline(never)]
+    fn switching_step(
         &mut self,
         actuator: &mut Actuator,
         h: f64,
         events: &mut StepEvents,
     ) -> Result<(), String> {
-        if self.linear_lane(actuator, h)? {
-            return Ok(());
-        }
         let (mut left, mut ahead) = (h, None);
         let mut first = 0;
         if let Some((tau, end)) = self.slew_from_start(actuator, h, events)? {
@@ -194,12 +229,20 @@ impl FixedCostIntegrator {
     /// its bookkeeping: a PI driver free of valve stops that stays in its linear mode over
     /// the step, from the step's start or after a brief slew into it from there (a loop's
     /// sample, a new command: taken as a jump, [`jumped_to_linear`]). The same arithmetic in
-    /// the same order, so the same bits. `false`, with nothing changed, for any other step:
+    /// the same order, so the same bits. `None`, with nothing changed, for any other step:
     /// a slew that is not brief, a state within the tolerance of a rail, a guard reached.
-    fn linear_lane(&mut self, actuator: &mut Actuator, h: f64) -> Result<bool, String> {
+    /// `known_rate`: the output's rate at the actuator's state where the lane left it in
+    /// the segment's last internal step (its end guards computed it; the cylinder's step
+    /// leaves that state as it is). Taking the lane, the output's rate at its end.
+    fn linear_lane(
+        &mut self,
+        actuator: &mut Actuator,
+        h: f64,
+        known_rate: Option<f64>,
+    ) -> Result<Option<f64>, String> {
         let c = &actuator.params;
         if !pi_driver_free_of_stops(c) {
-            return Ok(false);
+            return Ok(None);
         }
         let start = match actuator.mode {
             Mode::Linear => actuator.z,
@@ -207,22 +250,27 @@ impl FixedCostIntegrator {
                 Some(tau) if tau <= h * BRIEF_SLEW => {
                     jumped_to_linear(c, &actuator.hbridge, actuator.mode, tau, &actuator.z)
                 }
-                _ => return Ok(false),
+                _ => return Ok(None),
             },
-            _ => return Ok(false),
+            _ => return Ok(None),
         };
         let linear = &actuator.systems[Mode::Linear.index()];
-        if !driver::surely_linear(c, &linear.a, &start) {
-            return Ok(false);
+        let start_rate = match (actuator.mode, known_rate) {
+            (Mode::Linear, Some(rate)) => rate,
+            _ => driver::output_rate(&linear.a, &start),
+        };
+        if !driver::surely_linear(c, &start, start_rate) {
+            return Ok(None);
         }
         let key = system_key(Mode::Linear, valve::Stops::default());
         let mut end = self.whole.propagate(key, linear, h, &start)?;
         driver::project_onto(c, &actuator.hbridge, &mut end, Mode::Linear);
-        if driver::linear_guard_values(c, &linear.a, &end).iter().any(|&g| g >= 0.0) {
-            return Ok(false);
+        let end_rate = driver::output_rate(&linear.a, &end);
+        if driver::linear_guards_at_rate(c, &end, end_rate).iter().any(|&g| g >= 0.0) {
+            return Ok(None);
         }
         (actuator.mode, actuator.z) = (Mode::Linear, end);
-        Ok(true)
+        Ok(Some(end_rate))
     }
 
     /// A slew from the internal step's start that ends inside it in the linear mode, without

@@ -44,16 +44,24 @@ impl WholeSteps {
     }
 
     /// The slot of the propagator of `sys` (named `system`) over `h`, built if not held.
+    /// The last slot's check inline, the search and the build out of line: nearly every
+    /// propagation hits the last slot, and the rest would give it their stack frame.
+    #[inline]
     pub(crate) fn slot(
         &mut self,
         system: usize,
         sys: &ModeSystem,
         h: f64,
     ) -> Result<usize, String> {
-        let key = (system, h.to_bits());
-        if self.keys[self.last] == key {
+        if self.keys[self.last] == (system, h.to_bits()) {
             return Ok(self.last);
         }
+        self.find_or_build(system, sys, h)
+    }
+
+    #[inline(never)]
+    fn find_or_build(&mut self, system: usize, sys: &ModeSystem, h: f64) -> Result<usize, String> {
+        let key = (system, h.to_bits());
         let slot = match self.keys.iter().position(|&k| k == key) {
             Some(slot) => slot,
             None => {
@@ -70,6 +78,7 @@ impl WholeSteps {
     }
 
     /// `exp(A h) z` for the system `system` names.
+    #[inline]
     pub(crate) fn propagate(
         &mut self,
         system: usize,
