@@ -177,7 +177,7 @@ pub(crate) fn motion_row(
 
 /// Friction's creep band, in `cylinder.v_friction_smooth`: past this many its `tanh` is 1 to
 /// rounding (tanh(20) = 1 - 8e-18), and a step outside it sees the friction's tangent.
-const CREEP_BAND: f64 = 20.0;
+pub(crate) const CREEP_BAND: f64 = 20.0;
 
 /// For a fixed step of `h` from velocity `v` that starts in the friction's creep band or
 /// crosses or reaches it (`v` through zero: starting from rest, a reversal), the friction's
@@ -192,7 +192,7 @@ pub(crate) fn secant_friction(params: &CylinderParams, v: f64, h: f64, motion: &
         return;
     }
     let (v0, v1) = (v, v + h * motion.acceleration);
-    let band = CREEP_BAND * params.v_friction_smooth;
+    let band = params.creep_band();
     if (v0 * v1 > 0.0 && v0.abs() > band && v1.abs() > band) || v1 == v0 {
         return;
     }

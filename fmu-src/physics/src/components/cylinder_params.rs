@@ -3,6 +3,8 @@
 //! state's layout `[p_A, p_B, x, v]`, the hydraulic side's parameters with the rules
 //! between them, the areas and the rod's travel, and the chambers' volume clamp.
 
+use crate::components::cylinder_jacobian::CREEP_BAND;
+use crate::components::cylinder_terms::StribeckTails;
 use crate::components::metering_ports::MeteringPorts;
 use crate::params::{CylinderLoadParams, ValveParams};
 
@@ -52,6 +54,8 @@ struct Derived {
     v_stribeck_squared: f64,
     area_a_per_mass: f64,
     area_b_per_mass: f64,
+    creep_band: f64,
+    stribeck_tails: StribeckTails,
 }
 
 impl Derived {
@@ -73,6 +77,8 @@ impl Derived {
             v_stribeck_squared: load.v_stribeck * load.v_stribeck,
             area_a_per_mass: area_a / load.mass,
             area_b_per_mass: area_b / load.mass,
+            creep_band: CREEP_BAND * load.v_friction_smooth,
+            stribeck_tails: StribeckTails::of(load),
         }
     }
 }
@@ -177,6 +183,18 @@ impl CylinderParams {
     #[inline(always)]
     pub(crate) fn v_stribeck_squared(&self) -> f64 {
         self.derived.v_stribeck_squared
+    }
+
+    /// The friction's creep band's half-width, `CREEP_BAND v_friction_smooth` (m/s).
+    #[inline(always)]
+    pub(crate) fn creep_band(&self) -> f64 {
+        self.derived.creep_band
+    }
+
+    /// Which of the friction's Stribeck tails are lost in rounding ([`StribeckTails`]).
+    #[inline(always)]
+    pub(crate) fn stribeck_tails(&self) -> StribeckTails {
+        self.derived.stribeck_tails
     }
 
     /// `(A_A / m, A_B / m)`: the rod's acceleration per unit of each chamber's pressure.

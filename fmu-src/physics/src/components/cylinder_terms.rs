@@ -13,6 +13,7 @@
 
 use crate::components::cylinder_params::{CylinderParams, CylinderState};
 use crate::components::metering_ports::PortFlows;
+use crate::params::CylinderLoadParams;
 
 /// Chamber volumes `(V_A, V_B)` at position `x`, before the clamp (m3).
 pub(crate) fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
@@ -117,10 +118,8 @@ pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
     // (F_coulomb * 2^-54 bounds that from below), so the sum is F_coulomb exactly. The
     // decay is then needed for the slope alone: computed in each branch, so that a caller
     // that drops the slope does not compute it there, and only where the slope can see it.
-    let (dry, decay) = if stribeck > STRIBECK_TAIL.0
-        && excess.abs() * STRIBECK_TAIL.1 <= params.f_coulomb * (0.25 * f64::EPSILON)
-    {
-        (params.f_coulomb, slope_decay(params, stribeck, a, excess))
+    let (dry, decay) = if stribeck > STRIBECK_TAIL.0 && params.stribeck_tails().force_lost {
+        (params.f_coulomb, slope_decay(params, stribeck, a))
     } else {
         let decay = stribeck_decay(stribeck);
         (params.f_coulomb + excess * decay, decay)
@@ -144,6 +143,27 @@ pub(crate) fn friction_force(params: &CylinderParams, v: f64) -> f64 {
 /// 1.93e-22`, with room for libm's rounding).
 const STRIBECK_TAIL: (f64, f64) = (50.0, 2.0e-22);
 
+/// Whether past [`STRIBECK_TAIL`] the friction's decayed part is lost in rounding: in the
+/// force (below a quarter ulp of `F_coulomb`) and, where the smooth sign is saturated, in
+/// the slope (below a quarter ulp of the viscous slope). They depend on the parameters
+/// alone, so they are worked out once, with the other derived parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct StribeckTails {
+    pub force_lost: bool,
+    pub slope_lost: bool,
+}
+
+impl StribeckTails {
+    pub(crate) fn of(load: &CylinderLoadParams) -> StribeckTails {
+        let excess = load.f_static - load.f_coulomb;
+        StribeckTails {
+            force_lost: excess.abs() * STRIBECK_TAIL.1 <= load.f_coulomb * (0.25 * f64::EPSILON),
+            slope_lost: excess.abs() * STRIBECK_SLOPE_TAIL / load.v_stribeck
+                <= load.b_viscous.abs() * (0.25 * f64::EPSILON),
+        }
+    }
+}
+
 /// For `stribeck > STRIBECK_TAIL.0` the decayed part's slope `(F_s - F_c) d/dv
 /// exp(-(v/v_s)^2)` is below `|F_s - F_c| / v_s` times this: `2 u exp(-u^2)`, `u = |v|/v_s`,
 /// falls beyond `u^2 = 50`, where it is `2 sqrt(50) e^-50 = 2.73e-21` (with room for rounding).
@@ -155,11 +175,8 @@ const STRIBECK_SLOPE_TAIL: f64 = 3.0e-21;
 /// the viscous one, and the decayed part below a quarter ulp of the viscous one: the sum
 /// rounds to the viscous slope either way), else [`stribeck_decay`].
 #[inline(always)]
-fn slope_decay(params: &CylinderParams, stribeck: f64, a: f64, excess: f64) -> f64 {
-    let lost = a.abs() >= TANH_SATURATED
-        && excess.abs() * STRIBECK_SLOPE_TAIL / params.v_stribeck
-            <= params.b_viscous.abs() * (0.25 * f64::EPSILON);
-    if lost {
+fn slope_decay(params: &CylinderParams, stribeck: f64, a: f64) -> f64 {
+    if a.abs() >= TANH_SATURATED && params.stribeck_tails().slope_lost {
         0.0
     } else {
         stribeck_decay(stribeck)
