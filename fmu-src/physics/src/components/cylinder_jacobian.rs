@@ -175,10 +175,6 @@ pub(crate) fn motion_row(
     MotionRow { acceleration, d_v, friction }
 }
 
-/// Friction's creep band, in `cylinder.v_friction_smooth`: past this many its `tanh` is 1 to
-/// rounding (tanh(20) = 1 - 8e-18), and a step outside it sees the friction's tangent.
-pub(crate) const CREEP_BAND: f64 = 20.0;
-
 /// For a fixed step of `h` from velocity `v` that starts in the friction's creep band or
 /// crosses or reaches it (`v` through zero: starting from rest, a reversal), the friction's
 /// slope in the rod's row `motion` replaced by its secant from `v` to the explicit

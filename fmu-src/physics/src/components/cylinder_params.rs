@@ -3,8 +3,6 @@
 //! state's layout `[p_A, p_B, x, v]`, the hydraulic side's parameters with the rules
 //! between them, the areas and the rod's travel, and the chambers' volume clamp.
 
-use crate::components::cylinder_jacobian::CREEP_BAND;
-use crate::components::cylinder_terms::StribeckTails;
 use crate::components::metering_ports::MeteringPorts;
 use crate::params::{CylinderLoadParams, ValveParams};
 
@@ -282,3 +280,37 @@ impl CylinderLoadParams {
         (-half - depth / self.area_a(), half + depth / self.area_b())
     }
 }
+
+/// Friction's creep band, in `cylinder.v_friction_smooth`: past this many its `tanh` is 1 to
+/// rounding (tanh(20) = 1 - 8e-18), and a step outside it sees the friction's tangent.
+const CREEP_BAND: f64 = 20.0;
+
+/// `(s, b)`: for `stribeck > s` the computed `exp(-stribeck)` is below `b` (`e^-50 =
+/// 1.93e-22`, with room for libm's rounding).
+pub(crate) const STRIBECK_TAIL: (f64, f64) = (50.0, 2.0e-22);
+
+/// Whether past [`STRIBECK_TAIL`] the friction's decayed part is lost in rounding: in the
+/// force (below a quarter ulp of `F_coulomb`) and, where the smooth sign is saturated, in
+/// the slope (below a quarter ulp of the viscous slope). They depend on the parameters
+/// alone, so they are worked out once, with the other derived parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct StribeckTails {
+    pub force_lost: bool,
+    pub slope_lost: bool,
+}
+
+impl StribeckTails {
+    pub(crate) fn of(load: &CylinderLoadParams) -> StribeckTails {
+        let excess = load.f_static - load.f_coulomb;
+        StribeckTails {
+            force_lost: excess.abs() * STRIBECK_TAIL.1 <= load.f_coulomb * (0.25 * f64::EPSILON),
+            slope_lost: excess.abs() * STRIBECK_SLOPE_TAIL / load.v_stribeck
+                <= load.b_viscous.abs() * (0.25 * f64::EPSILON),
+        }
+    }
+}
+
+/// For `stribeck > STRIBECK_TAIL.0` the decayed part's slope `(F_s - F_c) d/dv
+/// exp(-(v/v_s)^2)` is below `|F_s - F_c| / v_s` times this: `2 u exp(-u^2)`, `u = |v|/v_s`,
+/// falls beyond `u^2 = 50`, where it is `2 sqrt(50) e^-50 = 2.73e-21` (with room for rounding).
+const STRIBECK_SLOPE_TAIL: f64 = 3.0e-21;

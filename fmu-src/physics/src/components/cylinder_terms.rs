@@ -11,9 +11,8 @@
 //! would see it), except at the contact switching surfaces of the end stop where it is the
 //! side without contact.
 
-use crate::components::cylinder_params::{CylinderParams, CylinderState};
+use crate::components::cylinder_params::{CylinderParams, CylinderState, STRIBECK_TAIL};
 use crate::components::metering_ports::PortFlows;
-use crate::params::CylinderLoadParams;
 
 /// Chamber volumes `(V_A, V_B)` at position `x`, before the clamp (m3).
 pub(crate) fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
@@ -138,36 +137,6 @@ pub(crate) fn friction(params: &CylinderParams, v: f64) -> (f64, f64) {
 pub(crate) fn friction_force(params: &CylinderParams, v: f64) -> f64 {
     friction(params, v).0
 }
-
-/// `(s, b)`: for `stribeck > s` the computed `exp(-stribeck)` is below `b` (`e^-50 =
-/// 1.93e-22`, with room for libm's rounding).
-const STRIBECK_TAIL: (f64, f64) = (50.0, 2.0e-22);
-
-/// Whether past [`STRIBECK_TAIL`] the friction's decayed part is lost in rounding: in the
-/// force (below a quarter ulp of `F_coulomb`) and, where the smooth sign is saturated, in
-/// the slope (below a quarter ulp of the viscous slope). They depend on the parameters
-/// alone, so they are worked out once, with the other derived parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct StribeckTails {
-    pub force_lost: bool,
-    pub slope_lost: bool,
-}
-
-impl StribeckTails {
-    pub(crate) fn of(load: &CylinderLoadParams) -> StribeckTails {
-        let excess = load.f_static - load.f_coulomb;
-        StribeckTails {
-            force_lost: excess.abs() * STRIBECK_TAIL.1 <= load.f_coulomb * (0.25 * f64::EPSILON),
-            slope_lost: excess.abs() * STRIBECK_SLOPE_TAIL / load.v_stribeck
-                <= load.b_viscous.abs() * (0.25 * f64::EPSILON),
-        }
-    }
-}
-
-/// For `stribeck > STRIBECK_TAIL.0` the decayed part's slope `(F_s - F_c) d/dv
-/// exp(-(v/v_s)^2)` is below `|F_s - F_c| / v_s` times this: `2 u exp(-u^2)`, `u = |v|/v_s`,
-/// falls beyond `u^2 = 50`, where it is `2 sqrt(50) e^-50 = 2.73e-21` (with room for rounding).
-const STRIBECK_SLOPE_TAIL: f64 = 3.0e-21;
 
 /// The Stribeck decay past its tail ([`STRIBECK_TAIL`]), where only the friction's slope
 /// reads it, at `stribeck = (v/v_s)^2` and `a = v/v_smooth`: 0 where that changes none of
