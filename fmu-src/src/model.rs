@@ -601,15 +601,8 @@ impl Model {
     #[inline]
     pub fn input_warnings(&self) -> [bool; InputWarning::ALL.len()] {
         let v = &self.state.borrow().values;
-        let suspects = WarningSuspects {
-            current_above_rating: v[vr::I_REF].abs() > VALVE_RATED_CURRENT,
-            no_driver_supply: v[vr::V_SUPPLY] == 0.0,
-            no_hydraulic_supply: v[vr::P_SUPPLY] == 0.0,
-        };
-        if !(suspects.current_above_rating
-            || suspects.no_driver_supply
-            || suspects.no_hydraulic_supply)
-        {
+        let suspects = WarningSuspects::of(v);
+        if !suspects.any() {
             return [false; InputWarning::ALL.len()];
         }
         suspects.confirmed(v)
@@ -651,10 +644,20 @@ struct WarningSuspects {
 }
 
 impl WarningSuspects {
-    /// Whether a value test of [`Model::input_warnings`] holds, tested one at a time.
+    /// The value tests at the values `v`.
     #[inline]
-    fn any(v: &[f64; N_VARIABLES]) -> bool {
-        v[vr::I_REF].abs() > VALVE_RATED_CURRENT || v[vr::V_SUPPLY] == 0.0 || v[vr::P_SUPPLY] == 0.0
+    fn of(v: &[f64; N_VARIABLES]) -> WarningSuspects {
+        WarningSuspects {
+            current_above_rating: v[vr::I_REF].abs() > VALVE_RATED_CURRENT,
+            no_driver_supply: v[vr::V_SUPPLY] == 0.0,
+            no_hydraulic_supply: v[vr::P_SUPPLY] == 0.0,
+        }
+    }
+
+    /// Whether a value test holds.
+    #[inline]
+    fn any(&self) -> bool {
+        self.current_above_rating || self.no_driver_supply || self.no_hydraulic_supply
     }
 
     /// Which conditions hold, now that a value test held. Out of line: the common step
@@ -840,7 +843,7 @@ impl ModelContract for Model {
     }
     fn warnings(&mut self) -> u32 {
         // The common step has no suspect: its values tested without a borrow of the cell.
-        if !WarningSuspects::any(&self.state.get_mut().values) {
+        if !WarningSuspects::of(&self.state.get_mut().values).any() {
             return 0;
         }
         self.input_warnings().iter().enumerate().map(|(i, &holds)| (holds as u32) << i).sum()

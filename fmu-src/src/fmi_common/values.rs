@@ -163,10 +163,10 @@ impl<M: ModelContract> Instance<M> {
     /// The index of value reference `vr` if it names a variable of a type the accessor serves.
     #[inline]
     fn resolve<A: Access>(&self, vr: u32) -> Result<usize, Status> {
-        match Self::ACCESS.get(vr as usize) {
-            Some(access) if access.type_bit & A::SERVES != 0 => Ok(vr as usize),
-            _ => self.refuse_reference(vr, A::NAME),
+        if Self::serves::<A>(vr) {
+            return Ok(vr as usize);
         }
+        self.refuse_reference(vr, A::NAME)
     }
 
     /// Whether value reference `vr` names a variable of a type the accessor serves.
