@@ -13,12 +13,12 @@ use std::cell::RefCell;
 use crate::contract::{communication_point_tolerance, ModelContract};
 use crate::physics::bytes::{frame, unframe, ByteReader};
 use crate::physics::{
-    ControlMode, CylinderLoadParams, DriverKind, Inputs, Params, Physics, StepEvents, Work,
-    RATE_PROBE,
+    valve_figures, ControlMode, CylinderLoadParams, DriverKind, Inputs, Params, Physics,
+    StepEvents, Work, RATE_PROBE,
 };
 use crate::variables::{
-    inputs, params, start_values, vr, write_outputs, Causality, Coded, Variability, Variable,
-    N_VARIABLES, SET_RULES, VALVE_RATED_CURRENT, VARIABLES,
+    inputs, params, start_values, vr, write_calculated, write_outputs, Causality, Coded,
+    Variability, Variable, N_VARIABLES, SET_RULES, VALVE_RATED_CURRENT, VARIABLES,
 };
 
 /// The communication step of the default experiment (modelDescription.xml), for which
@@ -52,7 +52,7 @@ struct State {
 
 /// The outputs that [`Physics::state_outputs`] leaves out: the port flows and the rod's
 /// slopes, which evaluate the cylinder's laws.
-const LAW_OUTPUTS: [usize; 4] = [vr::Q_A, vr::Q_B, vr::DF_ROD_DX, vr::DF_ROD_DV];
+const LAW_OUTPUTS: [usize; 5] = [vr::Q_A, vr::Q_B, vr::Q_SUPPLY, vr::DF_ROD_DX, vr::DF_ROD_DV];
 
 /// Where [`Model::reader`] finds a variable's value.
 #[derive(Clone, Copy)]
@@ -113,6 +113,7 @@ impl Model {
         let mut state =
             State { values, physics, rod_acceleration: 0.0, stale: false, laws_due: false };
         state.write_outputs();
+        state.write_valve_figures(&start_params()).expect("the start values describe a valve");
         Model { time: 0.0, initialized: false, state: RefCell::new(state) }
     }
 
@@ -255,11 +256,11 @@ impl Model {
             return;
         }
         state.stale = false;
-        let built =
-            params(&state.values).and_then(|p| Physics::start(&p, &state.inputs(), self.time));
-        if let Ok(physics) = built {
+        let Ok(p) = params(&state.values) else { return };
+        if let Ok(physics) = Physics::start(&p, &state.inputs(), self.time) {
             state.physics = physics;
             state.write_outputs();
+            let _ = state.write_valve_figures(&p);
         }
     }
 
@@ -273,6 +274,7 @@ impl Model {
         state.physics = Physics::start(&p, &inputs, self.time)?;
         state.physics.prepare_first_step(&inputs, self.time, DEFAULT_STEP_SIZE);
         state.write_outputs();
+        state.write_valve_figures(&p)?;
         state.stale = false;
         self.initialized = true;
         Ok(())
@@ -738,6 +740,13 @@ impl State {
     fn write_state_outputs(&mut self) {
         write_outputs(&self.physics.state_outputs(), &mut self.values);
         self.laws_due = true;
+    }
+
+    /// Writes what the valve's gains amount to into the calculated parameters (worked out
+    /// once, at initialisation: they change with fixed parameters only).
+    fn write_valve_figures(&mut self, params: &Params) -> Result<(), String> {
+        write_calculated(&valve_figures(&params.valve)?, &mut self.values);
+        Ok(())
     }
 
     /// Writes the physics' outputs into their value references.

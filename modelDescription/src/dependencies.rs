@@ -49,6 +49,8 @@ const FLAPPER_STOP: &[(usize, f64)] = &[(vr::VALVE_X_FLAPPER_MAX, 1e-6)];
 
 fn measure() -> Dependencies {
     let outputs: Vec<usize> = outputs().map(|(vr, _)| vr as usize).collect();
+    // Initialization Mode's unknowns: the outputs and the calculated parameters.
+    let unknowns: Vec<usize> = initial_unknowns().map(|(vr, _)| vr as usize).collect();
     let knowns: Vec<usize> = table()
         .filter(|(_, v)| matches!(v.causality, Causality::Input | Causality::Parameter))
         .map(|(vr, _)| vr as usize)
@@ -59,14 +61,15 @@ fn measure() -> Dependencies {
     let mut at_step = vec![[false; N_VARIABLES]; N_VARIABLES];
 
     for base in operating_points() {
-        let reference = output_values(&base, &outputs);
+        let reference = output_values(&base, &unknowns);
         for &known in &knowns {
             for value in other_values(known, base.get(known).expect("a known")) {
                 let mut model = base.clone();
                 if model.set(known, value).is_err() {
                     continue; // refused together with this configuration: not a reachable value
                 }
-                record(&mut initial, known, &outputs, &reference, &output_values(&model, &outputs));
+                let values = output_values(&model, &unknowns);
+                record(&mut initial, known, &unknowns, &reference, &values);
             }
         }
         // After initialisation the importer sets inputs between steps.
@@ -85,16 +88,18 @@ fn measure() -> Dependencies {
             }
         }
     }
-    let lists = |found: &[[bool; N_VARIABLES]]| {
-        outputs
-            .iter()
+    let lists = |found: &[[bool; N_VARIABLES]], of: &[usize]| {
+        of.iter()
             .map(|&o| {
                 let on = knowns.iter().filter(|&&k| found[o][k]).map(|&k| k as u32);
                 (o as u32, on.collect())
             })
             .collect()
     };
-    Dependencies { outputs: lists(&at_step), initial_unknowns: lists(&initial) }
+    Dependencies {
+        outputs: lists(&at_step, &outputs),
+        initial_unknowns: lists(&initial, &unknowns),
+    }
 }
 
 /// Every driver in every control mode: at rest (start values), with every command
@@ -152,7 +157,7 @@ fn other_values(index: usize, current: f64) -> Vec<f64> {
 }
 
 fn output_values(model: &Model, outputs: &[usize]) -> Vec<f64> {
-    outputs.iter().map(|&o| model.get(o).expect("an output")).collect()
+    outputs.iter().map(|&o| model.get(o).expect("an unknown")).collect()
 }
 
 /// Marks `known` for every output whose value differs (bitwise: NaN or a last-digit change

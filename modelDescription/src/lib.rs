@@ -252,6 +252,7 @@ fn causality_name(c: Causality) -> &'static str {
     match c {
         Causality::Independent => "independent",
         Causality::Parameter => "parameter",
+        Causality::CalculatedParameter => "calculatedParameter",
         Causality::Input => "input",
         Causality::Output => "output",
     }
@@ -293,9 +294,15 @@ fn table() -> impl Iterator<Item = (u32, &'static Variable)> {
 }
 
 /// Outputs listed in ModelStructure; all of them are also initial unknowns (initial =
-/// calculated), and no parameter is calculated.
+/// calculated).
 fn outputs() -> impl Iterator<Item = (u32, &'static Variable)> {
     table().filter(|(_, v)| v.causality == Causality::Output)
+}
+
+/// Initialization Mode's unknowns: the outputs and the calculated parameters, in table order.
+fn initial_unknowns() -> impl Iterator<Item = (u32, &'static Variable)> {
+    table()
+        .filter(|(_, v)| matches!(v.causality, Causality::Output | Causality::CalculatedParameter))
 }
 
 #[cfg(test)]

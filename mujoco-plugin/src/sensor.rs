@@ -66,9 +66,9 @@ mod tests {
     #[test]
     fn a_sensor_gives_the_outputs_in_table_order() {
         let names = output_names();
-        assert_eq!(dimension(), 16);
+        assert_eq!(dimension(), 17);
         assert_eq!(names[..3], ["i_coil", "u_driver", "driver_saturated"]);
         assert_eq!(names[8..10], ["p_A", "p_B"]);
-        assert_eq!(names[13..], ["F_rod", "dF_rod_dx", "dF_rod_dv"]);
+        assert_eq!(names[13..], ["F_rod", "dF_rod_dx", "dF_rod_dv", "Q_supply"]);
     }
 }

@@ -168,13 +168,13 @@ def test_rollout_equals_serial_run():
 
 
 def _output_slots(model, data, a: int) -> np.ndarray:
-    """Slots 0-15 (the outputs) of actuator ``a``'s instance."""
+    """Slots 0-16 (the outputs) of actuator ``a``'s instance."""
     adr = model.plugin_stateadr[model.actuator_plugin[a]]
     return data.plugin_state[adr : adr + len(mjplugin.OUTPUTS)].copy()
 
 
 def test_sensors_are_the_outputs_in_plugin_state():
-    """Each sensor is its instance's slots 0-15: after mj_step those at the step's start (a
+    """Each sensor is its instance's slots 0-16: after mj_step those at the step's start (a
     sensor is computed in the forward pass before the step, as MuJoCo's own), after
     mj_forward those at data.time; the pressures and forces of a loaded, moving leg."""
     names = list(mjplugin.OUTPUTS)

@@ -34,11 +34,14 @@ pub mod rhs;
 mod state;
 
 pub use components::rod_port::RATE_PROBE;
+pub use components::valve_datasheet::{
+    figures as valve_figures, ValveFigures, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ, MAX_LAP,
+};
 pub use events::{StepEvents, Work};
 pub use params::{
     CoilParams, ControlMode, CylinderLoadParams, DriverKind, HBridgeParams, Inputs,
-    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, RodPort, SolverMethod, ValveParams,
-    VALVE_RATED_CURRENT,
+    OuterLoopParams, Outputs, Params, PiDriverParams, PidGains, RodPort, SolverMethod,
+    ValveDatasheet, ValveParameterization, ValveParams, VALVE_RATED_CURRENT,
 };
 pub use physics::Physics;
 use physics::StepEnd;

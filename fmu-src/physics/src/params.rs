@@ -117,9 +117,52 @@ pub struct CoilParams {
     pub k_backemf: f64,
 }
 
+/// How the valve's figures are given.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ValveParameterization {
+    /// The internal gains of the Moog 30 model (K1, Kf, Kw, K2, K3, A_s, zeta, f_n).
+    Gains,
+    /// A datasheet's figures: rated flow and current, the -90 degree and -3 dB
+    /// frequencies, null leakage and pressure gain; the gains follow from them
+    /// (`components::valve_datasheet`).
+    Datasheet,
+}
+
+impl ValveParameterization {
+    /// Every form, in the order of their codes.
+    pub const ALL: [ValveParameterization; 2] =
+        [ValveParameterization::Gains, ValveParameterization::Datasheet];
+}
+
+/// A valve as its datasheet states it (read when the valve's parameterization is
+/// [`ValveParameterization::Datasheet`]; the null leakage, its reference supply and the
+/// pressure gain also describe the lap in either form).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ValveDatasheet {
+    /// No-load flow at the rated current and the rated total drop (m3/s).
+    pub q_rated: f64,
+    /// Rated current (A).
+    pub i_rated: f64,
+    /// Where the flow lags the current by 90 degrees (Hz).
+    pub f_90: f64,
+    /// Where the flow's amplitude is 3 dB down (Hz); 0: not given.
+    pub f_3db: f64,
+    /// Null leakage, supply to tank, spool centred and ports blocked, at `p_leak_ref`
+    /// (m3/s); 0: not given.
+    pub q_leak_null: f64,
+    /// Supply pressure above tank at which the leakage and pressure gain are stated (Pa).
+    pub p_leak_ref: f64,
+    /// Blocked-port pressure gain d(p_A - p_B)/di at null, at `p_leak_ref` (Pa/A); 0: what
+    /// the leakage gives.
+    pub pressure_gain: f64,
+}
+
 /// Moog 30 two-stage valve: first stage, spool, travel stops and metering ports.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ValveParams {
+    /// How the valve is given: its gains, or its datasheet (then the gains below are
+    /// derived at the start, `components::valve_datasheet`).
+    pub parameterization: ValveParameterization,
     pub k1: f64,
     pub kf: f64,
     pub kw: f64,
@@ -136,6 +179,14 @@ pub struct ValveParams {
     pub dp_rated: f64,
     /// Port drop below which the orifice law is regularised, Pa.
     pub dp_laminar: f64,
+    /// The spool's lap at null (m): > 0 underlap (null leakage, a finite pressure gain),
+    /// < 0 overlap (a dead band), 0 critically centred.
+    pub lap: f64,
+    /// The datasheet's figures.
+    pub datasheet: ValveDatasheet,
+    /// The first stage's pilot flow, supply to tank, at `datasheet.p_leak_ref` (m3/s): not
+    /// a parameter of its own, derived from the datasheet's null leakage (0 in gains form).
+    pub q_pilot: f64,
 }
 
 /// Cylinder, load, leakage and fluid, in SI (pressures gauge).
@@ -249,6 +300,8 @@ pub struct Outputs {
     pub x_piston: f64,
     pub v_piston: f64,
     pub f_hydraulic: f64,
+    /// The flow drawn from the supply: the metering edges' and the pilot's (m3/s).
+    pub q_supply: f64,
     /// The force of the actuator on the rod in +x (hydraulic force, friction and end stops):
     /// its mean over the last step (N).
     pub f_rod: f64,
@@ -277,6 +330,7 @@ impl Params {
         },
         coil: CoilParams { inductance: 3.2, resistance: 1000.0, r_sense: 0.0, k_backemf: 0.0 },
         valve: ValveParams {
+            parameterization: ValveParameterization::Gains,
             k1: 2.82462,
             kf: 511.545,
             kw: 74.2853,
@@ -289,6 +343,19 @@ impl Params {
             x_spool_max: 0.0,
             dp_rated: 6.8948e6,
             dp_laminar: 1.0e5,
+            lap: 0.0,
+            // The same valve's figures (its small-signal response, worked out from the
+            // gains above to rounding): in datasheet form it is the paper's valve.
+            datasheet: ValveDatasheet {
+                q_rated: 2.5267480366909735e-4,
+                i_rated: VALVE_RATED_CURRENT,
+                f_90: 368.3369021874452,
+                f_3db: 160.95738161940366,
+                q_leak_null: 0.0,
+                p_leak_ref: 2.1e7,
+                pressure_gain: 0.0,
+            },
+            q_pilot: 0.0,
         },
         cylinder: CylinderLoadParams {
             bore: 0.016,

@@ -203,7 +203,7 @@ fn check_restored<M: ModelContract>(model: &mut M) -> Result<(), String> {
         let value = read(index);
         match var.causality {
             Causality::Parameter | Causality::Input => var.check(value)?,
-            Causality::Output if !value.is_finite() => {
+            Causality::Output | Causality::CalculatedParameter if !value.is_finite() => {
                 return Err(format!("the state's {} = {value} is not finite", var.name))
             }
             _ => {}

@@ -220,10 +220,12 @@ impl<M: ModelContract> Instance<M> {
     fn refuse_setting(&self, index: usize) -> Result<(), Status> {
         let var = &M::VARIABLES[index];
         let Some(allowed) = settable_in(var) else {
-            let kind = if var.causality == Causality::Output {
-                "an output"
-            } else {
-                "the independent variable"
+            let kind = match var.causality {
+                Causality::Output => "an output",
+                Causality::CalculatedParameter => {
+                    "a calculated parameter (worked out from the parameters at initialisation)"
+                }
+                _ => "the independent variable",
             };
             return self.error(&format!("{} is {kind} and cannot be set", var.name));
         };

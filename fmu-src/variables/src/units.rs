@@ -53,6 +53,7 @@ pub static UNITS: &[Unit] = &[
     Unit { name: "A/m", base: [0, -1, 0, 1, 0, 0, 0, 0], display: &[] },
     Unit { name: "A/(m.s)", base: [0, -1, -1, 1, 0, 0, 0, 0], display: &[] },
     Unit { name: "A.s/m", base: [0, -1, 1, 1, 0, 0, 0, 0], display: &[] },
+    Unit { name: "Pa/A", base: [1, -1, -2, -1, 0, 0, 0, 0], display: &[d("bar/mA", 1e-8)] },
 ];
 
 pub fn unit(name: &str) -> Option<&'static Unit> {

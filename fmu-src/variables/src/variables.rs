@@ -10,6 +10,9 @@
 pub enum Causality {
     Independent,
     Parameter,
+    /// Worked out from the parameters at initialisation, read-only (FMI's
+    /// `calculatedParameter`).
+    CalculatedParameter,
     Input,
     Output,
 }
@@ -73,7 +76,7 @@ impl Variable {
         match self.causality {
             Causality::Independent | Causality::Input => None,
             Causality::Parameter => Some(Initial::Exact),
-            Causality::Output => Some(Initial::Calculated),
+            Causality::Output | Causality::CalculatedParameter => Some(Initial::Calculated),
         }
     }
     /// Whether the variable may be set, before initialisation ends or after: parameters
@@ -210,13 +213,31 @@ pub const SOLVER_METHOD_TYPE: Enumeration = Enumeration {
     ],
 };
 
-pub const ENUMERATIONS: &[Enumeration] =
-    &[DRIVER_TYPE, CONTROL_MODE_TYPE, ROD_PORT_TYPE, SOLVER_METHOD_TYPE];
+/// How the valve is given, in the order of [`ValveParameterization::ALL`].
+pub const VALVE_PARAMETERIZATION_TYPE: Enumeration = Enumeration {
+    name: "ValveParameterization",
+    description: "How the valve's figures are given",
+    items: &[
+        ("gains", "the Moog 30 model's internal gains (valve.K1, Kf, Kw, K2, K3, A_s, zeta, f_n)"),
+        ("datasheet", "a datasheet's figures (valve.Q_rated, i_rated, dp_rated, f_90, f_3dB, zeta; Q_leak_null, p_leak_ref, pressure_gain): the gains follow at initialisation (valve.derived.*)"),
+    ],
+};
+
+pub const ENUMERATIONS: &[Enumeration] = &[
+    DRIVER_TYPE,
+    CONTROL_MODE_TYPE,
+    ROD_PORT_TYPE,
+    SOLVER_METHOD_TYPE,
+    VALVE_PARAMETERIZATION_TYPE,
+];
 
 use Causality::*;
 use Variability::*;
 
-use crate::physics::{ControlMode, DriverKind, Inputs, Outputs, Params, RodPort, SolverMethod};
+use crate::physics::{
+    ControlMode, DriverKind, Inputs, Outputs, Params, RodPort, SolverMethod, ValveFigures,
+    ValveParameterization, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ, MAX_LAP,
+};
 
 /// A Boolean or enumeration field, stored in the value array as its integer value.
 pub trait Coded: Sized {
@@ -253,7 +274,8 @@ coded_enumeration!(
     DriverKind => "driver",
     ControlMode => "control_mode",
     RodPort => "cylinder.port",
-    SolverMethod => "solver.method"
+    SolverMethod => "solver.method",
+    ValveParameterization => "valve.parameterization"
 );
 
 const fn real(
@@ -323,6 +345,15 @@ const fn enumeration(
     let mut v = param(name, None, description);
     v.ty = VarType::Enumeration(enumeration.name);
     v.range(Some(0.0), Some((enumeration.items.len() - 1) as f64))
+}
+
+/// A calculated parameter: worked out from the parameters at initialisation, read-only.
+const fn calculated(
+    name: &'static str,
+    unit: Option<&'static str>,
+    description: &'static str,
+) -> Variable {
+    real(name, CalculatedParameter, Fixed, unit, None, 0.0, description)
 }
 
 /// A Boolean output that changes at events only.
@@ -514,6 +545,11 @@ macro_rules! variable_table {
         pub fn write_outputs(outputs: &Outputs, values: &mut [f64; N_VARIABLES]) {
             $(write_field!($group [$($field)*] $kind, outputs, values[vr::$constant]);)*
         }
+
+        /// Writes the valve's figures into the calculated parameters' value references.
+        pub fn write_calculated(figures: &ValveFigures, values: &mut [f64; N_VARIABLES]) {
+            $(write_calculated_field!($group [$($field)*], figures, values[vr::$constant]);)*
+        }
     };
 }
 
@@ -531,6 +567,13 @@ macro_rules! read_field {
     (param, param [$($field:tt)*] coded, $to:ident, $value:expr) => { $to.$($field)* = Coded::from_code($value)?; };
     (input, input [$($field:tt)*] real, $to:ident, $value:expr) => { $to.$($field)* = $value; };
     ($want:ident, $group:ident [$($field:tt)*] $kind:ident, $to:ident, $value:expr) => {};
+}
+
+/// Writes a calculated parameter's row from its field of [`ValveFigures`]; other rows are
+/// no-ops.
+macro_rules! write_calculated_field {
+    (calc [$($field:tt)*], $from:ident, $slot:expr) => { $slot = $from.$($field)*; };
+    ($group:ident [$($field:tt)*], $from:ident, $slot:expr) => {};
 }
 
 /// Writes an output row from its typed field; other rows are no-ops.
@@ -618,13 +661,13 @@ variable_table! {
     VALVE_K1 => param[valve.k1] real: param("valve.K1", Some("N.m/A"), "Torque-motor gain (0.025 in-lb/mA)").positive().range(Some(0.0), Some(1.0e3)),
     VALVE_KF => param[valve.kf] real: param("valve.Kf", Some("N.m/m"), "Net stiffness on flapper/armature (115 in-lb/in)").range(Some(1.0), Some(1.0e6)),
     VALVE_KW => param[valve.kw] real: param("valve.Kw", Some("N.m/m"), "Feedback wire stiffness (16.7 in-lb/in)").positive().range(Some(0.0), Some(1.0e5)),
-    VALVE_K2 => param[valve.k2] real: param("valve.K2", Some("m2/s"), "Hydraulic amplifier flow gain (150 in3/s/in)").positive().range(Some(0.0), Some(10.0)),
+    VALVE_K2 => param[valve.k2] real: param("valve.K2", Some("m2/s"), "Hydraulic amplifier flow gain (150 in3/s/in)").positive().range(Some(0.0), Some(MAX_AMPLIFIER_GAIN)),
     VALVE_K3 => param[valve.k3] real: param("valve.K3", Some("m2/s"), "Spool/bushing flow gain (1030 in3/s/in)").positive().range(Some(0.0), Some(100.0)),
     // Spool end areas: 0.4 mm to 110 mm diameter.
     VALVE_A_S => param[valve.spool_area] real: param("valve.A_s", Some("m2"), "Spool end area (0.026 in2)").range(Some(1.0e-7), Some(1.0e-2)),
     VALVE_ZETA => param[valve.zeta] real: param("valve.zeta", None, "Damping ratio of the first stage").range(Some(0.0), Some(10.0)),
     // A first stage is a small mechanical resonator: 100 kHz is 120 times the Moog 30's.
-    VALVE_F_N => param[valve.f_n] real: param("valve.f_n", Some("Hz"), "Natural frequency of the first stage").positive().range(Some(0.0), Some(1.0e5)),
+    VALVE_F_N => param[valve.f_n] real: param("valve.f_n", Some("Hz"), "Natural frequency of the first stage").positive().range(Some(0.0), Some(MAX_FIRST_STAGE_HZ)),
     // Industrial linear current amplifier (driver 3): a PI loop like the op-amp driver's
     // but with the slow gains of an off-the-shelf unit. L/Kp = 1.28 ms gives the My-502's
     // 5 ms (2 %) settling; Ki/Kp = R/L cancels the coil pole.
@@ -773,6 +816,37 @@ variable_table! {
     // docs/solvers.md gives the curve to pick a point on.
     SOLVER_H_INTERNAL => param[solver_h_internal] real: param("solver.h_internal", Some("s"), "Longest internal step of solver.method = fixed_cost: each span between time events is cut into equal steps no longer than this; not read by exact")
         .range(Some(1.0e-6), Some(1.0e-3)),
+
+    // A valve from its datasheet (issue 44; appended): docs/model.md, "The valve from its
+    // datasheet". Rated flows up to 1e-2 m3/s (600 L/min, beyond any two-stage servo valve
+    // this model describes); rated currents from 0.1 mA to i_ref's limit; the frequencies up
+    // to 10 kHz, ten times the fastest servo valve's.
+    VALVE_PARAMETERIZATION => param[valve.parameterization] coded: enumeration("valve.parameterization", &VALVE_PARAMETERIZATION_TYPE, "How the valve is given: gains (valve.K1 ... valve.f_n) or datasheet (valve.Q_rated, i_rated, dp_rated, f_90, f_3dB, zeta; the gains follow at initialisation)"),
+    VALVE_Q_RATED => param[valve.datasheet.q_rated] real: param("valve.Q_rated", Some("m3/s"), "Datasheet: no-load flow at valve.i_rated and the total drop valve.dp_rated").positive().range(Some(0.0), Some(1.0e-2)),
+    VALVE_I_RATED => param[valve.datasheet.i_rated] real: param("valve.i_rated", Some("A"), "Datasheet: rated current").range(Some(1.0e-4), Some(10.0 * VALVE_RATED_CURRENT)),
+    VALVE_F_90 => param[valve.datasheet.f_90] real: param("valve.f_90", Some("Hz"), "Datasheet: frequency at which Q_valve/i_coil lags 90 degrees (small signal, ideal current)").range(Some(1.0), Some(1.0e4)),
+    VALVE_F_3DB => param[valve.datasheet.f_3db] real: param("valve.f_3dB", Some("Hz"), "Datasheet: frequency at which |Q_valve/i_coil| is 3 dB down (0: not given, the first stage keeps the Moog 30's ratio of its natural frequency to the spool loop's bandwidth)").non_negative().range(Some(0.0), Some(1.0e4)),
+    // Laps up to MAX_LAP either way (a spool's stroke is a few mm).
+    VALVE_LAP => param[valve.lap] real: param("valve.lap", Some("m"), "Spool lap at null: > 0 underlap (null leakage, finite pressure gain), < 0 overlap (dead band), 0 critically centred; in datasheet form valve.Q_leak_null may set it instead").range(Some(-MAX_LAP), Some(MAX_LAP)),
+    // Null leakage up to 1e-3 m3/s (60 L/min): a valve's whole rated flow.
+    VALVE_Q_LEAK_NULL => param[valve.datasheet.q_leak_null] real: param("valve.Q_leak_null", Some("m3/s"), "Datasheet: null leakage supply to tank, spool centred, ports blocked, at valve.p_leak_ref (0: not given, no leakage)").non_negative().range(Some(0.0), Some(1.0e-3)),
+    VALVE_P_LEAK_REF => param[valve.datasheet.p_leak_ref] real: param("valve.p_leak_ref", Some("Pa"), "Supply pressure above tank at which valve.Q_leak_null and valve.pressure_gain are stated (and valve.derived.* reported)").range(Some(1.0e5), Some(1.0e8)),
+    // Pressure gains up to 1e14 Pa/A: 1000 bar across the ports per 1 uA.
+    VALVE_PRESSURE_GAIN => param[valve.datasheet.pressure_gain] real: param("valve.pressure_gain", Some("Pa/A"), "Datasheet: blocked-port pressure gain d(p_A - p_B)/di at null at valve.p_leak_ref (0: what the leakage gives); the rest of the leakage is pilot flow").non_negative().range(Some(0.0), Some(1.0e14)),
+    Q_SUPPLY => output[q_supply] real: output("Q_supply", "m3/s", Some("L/min"), "Flow drawn from the supply: through the P->A and P->B metering edges and the first stage's pilot flow"),
+    // What the valve's gains amount to (both parameterizations), read after initialisation.
+    VALVE_DERIVED_K1 => calc[k1] real: calculated("valve.derived.K1", Some("N.m/A"), "Torque-motor gain in use (datasheet form: Kw x_r/i_rated, x_r the Moog 30's rated spool stroke)"),
+    VALVE_DERIVED_KW => calc[kw] real: calculated("valve.derived.Kw", Some("N.m/m"), "Feedback-wire stiffness in use"),
+    VALVE_DERIVED_K2 => calc[k2] real: calculated("valve.derived.K2", Some("m2/s"), "Hydraulic-amplifier flow gain in use (datasheet form: A_s Kf/(Kw tau))"),
+    VALVE_DERIVED_K3 => calc[k3] real: calculated("valve.derived.K3", Some("m2/s"), "Spool flow gain in use (datasheet form: Q_rated/x_r)"),
+    VALVE_DERIVED_F_N => calc[f_n] real: calculated("valve.derived.f_n", Some("Hz"), "First-stage natural frequency in use"),
+    VALVE_DERIVED_TAU => calc[tau] real: calculated("valve.derived.tau", Some("s"), "Time constant of the spool loop, A_s Kf/(Kw K2)"),
+    VALVE_DERIVED_F_90 => calc[f_90] real: calculated("valve.derived.f_90", Some("Hz"), "Frequency at which Q_valve/i_coil lags 90 degrees (small signal, ideal current; 0: never)"),
+    VALVE_DERIVED_F_3DB => calc[f_3db] real: calculated("valve.derived.f_3dB", Some("Hz"), "Frequency at which |Q_valve/i_coil| is first 3 dB down"),
+    VALVE_DERIVED_LAP => calc[lap] real: calculated("valve.derived.lap", Some("m"), "Spool lap in use"),
+    VALVE_DERIVED_Q_LEAK_NULL => calc[q_leak_null] real: calculated("valve.derived.Q_leak_null", Some("m3/s"), "Null leakage at valve.p_leak_ref, ports blocked: the lap's and the pilot's"),
+    VALVE_DERIVED_Q_PILOT => calc[q_pilot] real: calculated("valve.derived.Q_pilot", Some("m3/s"), "First-stage pilot flow, supply to tank, at valve.p_leak_ref"),
+    VALVE_DERIVED_PRESSURE_GAIN => calc[pressure_gain] real: calculated("valve.derived.pressure_gain", Some("Pa/A"), "Blocked-port pressure gain at null at valve.p_leak_ref (0: unbounded, no underlap)"),
 }
 
 /// Index of the variable with this name.
@@ -839,7 +913,7 @@ mod tests {
         }
         assert_eq!(VARIABLES[vr::COIL_K_B].name, "coil.K_b");
         assert_eq!(VARIABLES[vr::POSITION_KD].name, "position.Kd");
-        assert_eq!(N_VARIABLES, 88);
+        assert_eq!(N_VARIABLES, 110);
     }
 
     /// Users' scripts and saved states hold value references: every variable keeps its row.
@@ -935,6 +1009,28 @@ mod tests {
             "dF_rod_dv",
             "solver.method",
             "solver.h_internal",
+            "valve.parameterization",
+            "valve.Q_rated",
+            "valve.i_rated",
+            "valve.f_90",
+            "valve.f_3dB",
+            "valve.lap",
+            "valve.Q_leak_null",
+            "valve.p_leak_ref",
+            "valve.pressure_gain",
+            "Q_supply",
+            "valve.derived.K1",
+            "valve.derived.Kw",
+            "valve.derived.K2",
+            "valve.derived.K3",
+            "valve.derived.f_n",
+            "valve.derived.tau",
+            "valve.derived.f_90",
+            "valve.derived.f_3dB",
+            "valve.derived.lap",
+            "valve.derived.Q_leak_null",
+            "valve.derived.Q_pilot",
+            "valve.derived.pressure_gain",
         ];
         assert_eq!(names[..pinned.len()], pinned);
     }
@@ -953,6 +1049,12 @@ mod tests {
         assert!(DriverKind::from_code(5.0).unwrap_err().contains("driver = 5"));
         assert!(ControlMode::from_code(-1.0).is_err());
         assert_eq!(VARIABLES[vr::DRIVER].max, Some(4.0));
+        for (form, (name, _)) in
+            ValveParameterization::ALL.iter().zip(VALVE_PARAMETERIZATION_TYPE.items)
+        {
+            assert_eq!(ValveParameterization::from_code(form.code()), Ok(*form), "{name}");
+        }
+        assert_eq!(VALVE_PARAMETERIZATION_TYPE.items[1].0, "datasheet");
     }
 
     #[test]

@@ -3,7 +3,9 @@
 //! reorganisation) does, bit for bit.
 //!
 //! ```text
-//! output_digest [STEPS]       # default 5000 steps of 1e-4 s (the bench's 0.5 s)
+//! output_digest [STEPS] [--skip NAME[,NAME...]]
+//!     # default 5000 steps of 1e-4 s (the bench's 0.5 s); --skip leaves the named outputs
+//!     # out, to compare with a build that predates them (Q_supply: before issue 44)
 //! ```
 //!
 //! Prints one line per workload and method: the FNV-1a hash of the bits of every output
@@ -19,19 +21,25 @@ const DEFAULT_STEPS: usize = 5000;
 const H: f64 = 1e-4;
 
 fn main() -> ExitCode {
-    let steps = match std::env::args().nth(1).map(|s| s.parse::<usize>()) {
-        None => DEFAULT_STEPS,
-        Some(Ok(n)) => n,
-        Some(Err(_)) => {
-            eprintln!("usage: output_digest [STEPS]");
+    let (mut steps, mut skip) = (DEFAULT_STEPS, Vec::<String>::new());
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        let parsed = match arg.as_str() {
+            "--skip" => {
+                args.next().map(|names| skip = names.split(',').map(str::to_string).collect())
+            }
+            _ => arg.parse().ok().map(|n| steps = n),
+        };
+        if parsed.is_none() {
+            eprintln!("usage: output_digest [STEPS] [--skip NAME[,NAME...]]");
             return ExitCode::FAILURE;
         }
-    };
+    }
     let mut failed = false;
     for workload in workloads::all() {
         for method in [workloads::EXACT, FIXED_COST] {
             let w = workload.with_method(method);
-            match capi_steps::digest(&w, steps, H) {
+            match capi_steps::digest(&w, steps, H, &skip) {
                 Ok((hash, last)) => {
                     println!(
                         "{:<28} {hash:016x}  x_piston {:+.9e}  p_A {:.9e}",

@@ -3,6 +3,7 @@
 
 use crate::components::cylinder::CylinderParams;
 use crate::components::outer_loop::LoopParams;
+use crate::components::valve_datasheet;
 use crate::params::{DriverKind, HBridgeParams, Params, SolverMethod, ValveParams};
 
 /// The parameters in the form the equations use (derived from [`Params`] once).
@@ -29,7 +30,8 @@ impl Coefficients {
     /// Derives the coefficients and checks the rules between parameters.
     pub(crate) fn new(p: &Params) -> Result<Coefficients, String> {
         let pi = if p.driver == DriverKind::Industrial { p.industrial } else { p.opamp };
-        let v = &p.valve;
+        // In datasheet form the gains are worked out here, once.
+        let v = &valve_datasheet::resolve(&p.valve)?;
         Ok(Coefficients {
             driver: p.driver,
             kp: pi.kp,

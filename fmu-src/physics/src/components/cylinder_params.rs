@@ -108,7 +108,11 @@ impl CylinderParams {
     ) -> Result<CylinderParams, String> {
         let p = CylinderParams {
             load: *cylinder,
-            ports: MeteringPorts::new(valve.k3, valve.dp_rated, valve.dp_laminar),
+            ports: MeteringPorts::new(valve.k3, valve.dp_rated, valve.dp_laminar).with_leakage(
+                valve.lap,
+                valve.q_pilot,
+                valve.datasheet.p_leak_ref,
+            ),
             derived: Derived::of(cylinder),
         };
         p.validate()?;

@@ -15,3 +15,4 @@ pub(crate) mod metering_ports;
 pub(crate) mod outer_loop;
 pub(crate) mod rod_port;
 pub(crate) mod valve;
+pub(crate) mod valve_datasheet;

@@ -211,20 +211,27 @@ impl SpoolPath {
         (c[1] + s * (2.0 * c[2] + s * (3.0 * c[3] + s * (4.0 * c[4] + s * 5.0 * c[5])))) / self.h
     }
 
-    /// Where the spool passes null inside `(0, h)`, if its ends lie on opposite sides:
-    /// safeguarded Newton on the path, to rounding. The time returned is the first one
-    /// found on the far side's port law ([`super::metering_ports`] reads `x_s = 0` as opening
-    /// P -> A),
-    /// so the piece that starts there is linearised on the branch it runs on: the flows
-    /// are continuous at null but their slope in `x_s` is not.
+    /// Where the spool passes null inside `(0, h)`, if its ends lie on opposite sides
+    /// ([`SpoolPath::level_crossing`] at 0).
+    #[cfg(test)]
     pub(crate) fn null_crossing(&self) -> Option<f64> {
-        let (x0, x1) = (self.coef[0], self.end);
+        self.level_crossing(0.0)
+    }
+
+    /// Where the spool passes `level` inside `(0, h)`, if its ends lie on opposite sides:
+    /// safeguarded Newton on the path, to rounding. The time returned is the first one
+    /// found on the far side's port law ([`super::metering_ports`] reads a kink's level as
+    /// the law above it: `x_s = 0` opens P -> A), so the piece that starts there is
+    /// linearised on the branch it runs on: the flows are continuous at a kink but their
+    /// slope in `x_s` is not.
+    pub(crate) fn level_crossing(&self, level: f64) -> Option<f64> {
+        let (x0, x1) = (self.coef[0] - level, self.end - level);
         if x0 * x1 >= 0.0 {
             return None;
         }
         let rising = x1 > 0.0;
         let (_, t) = newton_in_bracket(
-            |t| (self.position(t), self.rate(t)),
+            |t| (self.position(t) - level, self.rate(t)),
             |x| if rising { x >= 0.0 } else { x < 0.0 },
             (0.0, self.h),
             self.h * x0 / (x0 - x1),

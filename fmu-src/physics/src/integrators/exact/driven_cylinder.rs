@@ -83,10 +83,16 @@ impl DrivenCylinder {
             return Ok(());
         }
         let path = SpoolPath::new(h, sys.spool_motion(z0), sys.spool_motion(z1));
-        // The port laws change sides at null spool, a kink in the flows that Rodas4 would
-        // reject its way across: the piece is split there.
+        // The port laws change sides at null spool (with a lap: at the lands' openings), a
+        // kink in the flows that Rodas4 would reject its way across: the piece is split there.
+        let [first, second] =
+            params.ports.kinks().map(|level| level.and_then(|l| path.level_crossing(l)));
+        let cuts = match (first, second) {
+            (Some(a), Some(b)) => [Some(a.min(b)), Some(a.max(b))],
+            _ => [first.or(second), None],
+        };
         let mut done = 0.0;
-        for end in [path.null_crossing(), Some(h)].into_iter().flatten() {
+        for end in [cuts[0], cuts[1], Some(h)].into_iter().flatten() {
             let offset = done;
             let spool = |tau: f64| (path.position(offset + tau), path.rate(offset + tau));
             let stats = rosenbrock::advance_with_rate(

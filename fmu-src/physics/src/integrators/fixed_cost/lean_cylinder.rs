@@ -91,7 +91,9 @@ pub(crate) fn advance(
 /// `contact0` ([`contact_force`]; 0 with the motion port). A step whose end-stop contact
 /// switches (the piston reaching a stop's face, where the damper's force jumps in, or the
 /// contact force falling to zero, a kink) or whose chamber pressure crosses a kink of its
-/// laws ([`pressure_switch`]) is cut there, the switch placed by one interpolation along
+/// laws ([`pressure_switch`]), or whose spool reaches a land's opening (with a lap,
+/// [`MeteringPorts::edge_crossing`](crate::components::metering_ports::MeteringPorts::edge_crossing)),
+/// is cut there, the switch placed by one interpolation along
 /// the step, and the rest taken from a new linearisation (two linearised steps, else one).
 fn advance_once(
     params: &CylinderParams,
@@ -102,11 +104,19 @@ fn advance_once(
 ) -> (Vec4, u64) {
     let linear = Linearised::at(params, y0, spool, h, loads);
     let y1 = linear.step(params, y0, h);
-    if params.port == RodPort::Motion {
-        return (y1, 1);
-    }
-    let contact = contact_switch(params, (y0, contact0), &y1);
-    let first_switch = contact.into_iter().chain(pressure_switch(params, y0, &y1)).reduce(f64::min);
+    let (contact, switch) = match params.port {
+        RodPort::Force => {
+            let contact = contact_switch(params, (y0, contact0), &y1);
+            (contact, contact.into_iter().chain(pressure_switch(params, y0, &y1)).reduce(f64::min))
+        }
+        RodPort::Motion => (None, None),
+    };
+    // A land's opening (with a lap) changes the flows' slope in the spool's position: the
+    // step is cut where the spool, on its straight line, reaches it.
+    let first_switch = match params.ports.edge_crossing(spool) {
+        None => switch,
+        Some(edge) => Some(switch.map_or(edge, |s| s.min(edge))),
+    };
     let Some(fraction) = first_switch else {
         return (y1, 1);
     };
