@@ -182,8 +182,9 @@ impl MeteringPorts {
 
 impl MeteringPorts {
     /// [`MeteringPorts::flows`] with a lap: each chamber's two edges, each by its own
-    /// opening (module documentation).
-    #[inline(never)]
+    /// opening (module documentation). Inlined where the ports are: a call, even one not
+    /// taken, costs the critically centred ports' callers more than the code.
+    #[inline(always)]
     fn lapped_flows(
         &self,
         x_s: f64,

@@ -217,19 +217,12 @@ pub(crate) fn first_3db_crossing(wn: f64, tau: f64, zeta: f64) -> f64 {
     let cubic = |x: f64| ((c[0] * x + c[1]) * x + c[2]) * x + c[3];
     // Turning points: 3 c0 x^2 + 2 c1 x + c2 = 0.
     let disc = c[1] * c[1] - 3.0 * c[0] * c[2];
-    let mut ends = vec![];
-    if disc > 0.0 {
-        let root = disc.sqrt();
-        for x in [(-c[1] - root) / (3.0 * c[0]), (-c[1] + root) / (3.0 * c[0])] {
-            if x > 0.0 {
-                ends.push(x);
-            }
-        }
-    }
+    let root = if disc > 0.0 { disc.sqrt() } else { f64::NAN };
+    let turning = [-root, root].map(|r| (-c[1] + r) / (3.0 * c[0]));
     // Beyond the Cauchy bound the cubic is positive.
-    ends.push(1.0 + c[1..].iter().map(|k| (k / c[0]).abs()).fold(0.0, f64::max));
+    let bound = 1.0 + c[1..].iter().map(|k| (k / c[0]).abs()).fold(0.0, f64::max);
     let mut lo = 0.0;
-    for hi in ends {
+    for hi in [turning[0], turning[1], bound].into_iter().filter(|&x| x > 0.0) {
         if cubic(hi) >= 0.0 {
             return bisect(&cubic, lo, hi).sqrt();
         }
