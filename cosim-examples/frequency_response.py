@@ -3,7 +3,7 @@ i_ref -> Q_valve and, in the flow loop, Q_ref -> Q_valve; small signal (0.1 mA) 
 large signal (1, 5, 10 mA) at supplies of 72, 24 and 10 V.
 
     .venv/bin/python cosim-examples/frequency_response.py [--quick] [--fmi3] [--serial]
-        [--scheduler ADDRESS] [--workers N] [--out-dir out]
+        [--scheduler ADDRESS] [--workers N] [--out-dir out] [--valve NAME|all ...]
 
 Method: sine excitation, settle, fundamental over whole periods (ehsv/frequency.py says
 how the held inputs are accounted for). Prints
@@ -17,12 +17,23 @@ how the held inputs are accounted for). Prints
 
 and writes bode_small_signal.png, bode_large_signal.png and slew_limit.png. Every
 curve is one task on dask.distributed (LocalCluster by default, one worker per core).
+
+``--valve NAME`` (a valve of the catalog cosim-examples/ehsv/valves.toml, repeatable, or
+``all``) measures that valve instead: its small-signal Q_valve / i_ref with the ideal
+current source (1 % of its rated current) over a sweep, the DC gain from a step held to
+steady state, the -90 degree and -3 dB frequencies by a root search on the measured phase
+and magnitude inside the sweep's bracket (ehsv/valves.py), and, with the rod held at
+mid-stroke and its ports blocked at the datasheet's supply, Q_supply at null and the
+pressure gain. It prints each figure of the datasheet beside the FMU's, and writes
+bode_valve_NAME.png: the measured points, the model's line from its derived gains, the
+datasheet's points marked (Q_rated/i_rated, -3 dB at f_3dB, -90 degrees at f_90).
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +41,7 @@ import numpy as np
 import ehsv
 from ehsv import cli, cluster
 from ehsv import frequency as fr
+from ehsv import valves as vv
 
 SUPPLIES = (72.0, 24.0, 10.0)
 SMALL = 1e-4  # A, small-signal amplitude
@@ -280,6 +292,146 @@ def onset_figure(onsets: list[dict], out: Path) -> None:
     ehsv.save_figure(fig, out)
 
 
+# --------------------------------------------------------------------------------------
+# --valve NAME: a catalog valve's datasheet figures through the FMU
+# --------------------------------------------------------------------------------------
+
+L_MIN = 60000.0  # L/min per m3/s
+
+
+def valve_sweep(name: str, per_decade: int) -> list[float]:
+    """From a twentieth of the lower datasheet frequency to 8 f_90, ``per_decade`` points
+    a decade."""
+    sheet = vv.datasheet(vv.start_values(name))
+    lo, hi = min(sheet.f_90, sheet.f_3dB or sheet.f_90) / 20, 8 * sheet.f_90
+    return list(np.geomspace(lo, hi, int(round(per_decade * math.log10(hi / lo))) + 1))
+
+
+def _cell(x, scale: float = 1.0, fmt: str = "{:12.7g}") -> str:
+    return fmt.format(x * scale) if x is not None and math.isfinite(x) else f"{'-':>12}"
+
+
+def _err(measured, expected) -> str:
+    if expected is None or not expected or not math.isfinite(measured):
+        return f"{'':>10}"
+    return f"{(measured / expected - 1) * 100:+9.4f}%"
+
+
+def valve_table(name: str, resp: dict, null: dict) -> str:
+    """Each datasheet figure of the valve beside the FMU's derived one and the measured."""
+    sheet, d = resp["datasheet"], resp["derived"]
+    where = vv.source(name).get("document", "no source document named")
+    p_bar = sheet.p_leak_ref / 1e5
+    gain_expected = sheet.pressure_gain or sheet.lap_pressure_gain
+    rows = [
+        ("DC gain Q_rated/i_rated", "L/min per mA", sheet.flow_gain, d["K3"] * d["K1"] / d["Kw"],
+         resp["dc_gain"], L_MIN / 1e3),
+        ("-90 degree frequency f_90", "Hz", sheet.f_90, d["f_90"], resp["f_90"], 1.0),
+        ("-3 dB frequency f_3dB", "Hz", sheet.f_3dB, d["f_3dB"], resp["f_3dB"], 1.0),
+        (f"null leakage at {p_bar:g} bar", "L/min", sheet.Q_leak_null, d["Q_leak_null"],
+         null["Q_supply"], L_MIN),
+        (f"pressure gain at {p_bar:g} bar", "bar per mA", gain_expected, d["pressure_gain"] or None,
+         null["pressure_gain"], 1e-8),
+    ]  # fmt: skip
+    head = (
+        f"{'figure':<30} {'unit':<13} {'datasheet':>12} {'FMU derived':>12} {'measured':>12} {'vs sheet':>10}"
+    )
+    lines = [f"valve {name} ({where})", head, "-" * len(head)]
+    for what, unit, sheet_v, derived_v, measured, scale in rows:
+        lines.append(
+            f"{what:<30} {unit:<13} {_cell(sheet_v, scale)} {_cell(derived_v, scale)} "
+            f"{_cell(measured, scale)} {_err(measured, sheet_v)}"
+        )
+    if not sheet.pressure_gain and gain_expected:
+        lines.append("  (pressure gain not on the sheet: the one its null leakage gives through the lap)")
+    runs = f"  {len(resp['f'])} sweep points, {resp['evaluations'] - len(resp['f'])} runs for the crossings"
+    amp = f"{resp['amplitude'] * 1e3:g} mA"
+    if math.isfinite(null["di"]):
+        lines.append(f"{runs}, {amp}; pressure gain from +-{null['di'] * 1e3:.3g} mA")
+    else:
+        lines.append(f"{runs}, {amp}; no lap: pressure gain unbounded")
+    return "\n".join(lines)
+
+
+def valve_figure(name: str, resp: dict, out: Path, version: str) -> None:
+    """Bode plot of Q_valve / i_ref over Q_rated/i_rated: measured points, the model's line
+    (derived gains), the datasheet's points and the measured crossings."""
+    plt = ehsv.pyplot()
+    sheet, d = resp["datasheet"], resp["derived"]
+    k = sheet.flow_gain
+    fig, (mag, ph) = plt.subplots(2, 1, sharex=True, figsize=(8, 7))
+    g = np.asarray(resp["gains"]) / k
+    fa = np.geomspace(min(resp["f"]), max(resp["f"]), 400)
+    ga = vv.transfer(d, fa) / k
+    mag.semilogx(resp["f"], fr.db(g), "o", ms=4, color="tab:blue", label="FMU, measured (sine fits)")
+    ph.semilogx(resp["f"], fr.phase_deg(g), "o", ms=4, color="tab:blue")
+    mag.semilogx(fa, fr.db(ga), "-", lw=1, color="tab:blue", alpha=0.5, label="model, derived gains")
+    ph.semilogx(fa, fr.phase_deg(ga), "-", lw=1, color="tab:blue", alpha=0.5)
+    dc_db = 20 * math.log10(resp["dc_gain"] / k)
+    mag.plot([min(resp["f"])], [0.0], "rs", ms=9, mfc="none", label="datasheet Q_rated/i_rated (0 dB)")
+    mag.plot([min(resp["f"])], [dc_db], "k+", ms=9, label=f"measured DC gain ({dc_db:+.4f} dB)")
+    if sheet.f_3dB:
+        mag.plot(
+            [sheet.f_3dB], [-3.0103], "rD", ms=9, mfc="none", label=f"datasheet f_3dB {sheet.f_3dB:g} Hz"
+        )
+    if math.isfinite(resp["f_3dB"]):
+        mag.plot(
+            [resp["f_3dB"]], [-3.0103 + dc_db], "kx", ms=8, label=f"measured -3 dB: {resp['f_3dB']:.4g} Hz"
+        )
+    ph.plot([sheet.f_90], [-90.0], "rD", ms=9, mfc="none", label=f"datasheet f_90 {sheet.f_90:g} Hz")
+    if math.isfinite(resp["f_90"]):
+        ph.plot([resp["f_90"]], [-90.0], "kx", ms=8, label=f"measured -90 deg: {resp['f_90']:.4g} Hz")
+    for ax, level in ((mag, -3.0103), (ph, -90.0)):
+        ax.axhline(level, color="grey", lw=0.5, ls=":")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7, loc="lower left")
+    mag.set_ylabel("|Q_valve / i| over Q_rated/i_rated [dB]")
+    ph.set_ylabel("phase [deg]")
+    ph.set_xlabel("frequency [Hz]")
+    doc = textwrap.shorten(vv.source(name).get("document", ""), 110, placeholder=" ...")
+    fig.suptitle(
+        f"valve {name}: small-signal Q_valve / i_coil, ideal current, {resp['amplitude'] * 1e3:g} mA, "
+        f"FMU ({version})" + (f"\n{doc}" if doc else ""),
+        fontsize=9,
+    )
+    cli.write_figure(fig, out)
+
+
+def valve_main(args, version: str) -> int:
+    """--valve: measure each named valve (one dask task per measurement), print its
+    table, draw its Bode plot."""
+    chosen = vv.names() if "all" in args.valve else args.valve
+    unknown = [n for n in chosen if n not in vv.names()]
+    if unknown:
+        print(
+            f"no valve {', '.join(unknown)} in the catalog; it has {', '.join(vv.names())}", file=sys.stderr
+        )
+        return 2
+    per_decade = 4 if args.quick else 10
+    responses = [{"version": version, "valve": n, "freqs": valve_sweep(n, per_decade)} for n in chosen]
+    nulls = [{"version": version, "valve": n} for n in chosen]
+    client = None if args.serial else cluster.client_for(args.scheduler, args.workers)
+    try:
+        progress = not args.no_progress
+        resp = cluster.map_points(
+            vv.measure_response, responses, client=client, progress=progress, desc="valves"
+        )
+        null = cluster.map_points(vv.measure_null, nulls, client=client, progress=progress, desc="null")
+    finally:
+        cluster.close(client)
+    failed = [r for r in resp + null if "error" in r]
+    for r in failed:
+        print(f"failed: {r['error']}", file=sys.stderr)
+    if failed:
+        return 1
+    print(f"EhsvActuator ({version}): catalog valves, datasheet against the FMU")
+    for name, r, n in zip(chosen, resp, null, strict=True):
+        print()
+        print(valve_table(name, r, n))
+        valve_figure(name, r, args.out_dir / f"bode_valve_{name}.png", version)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = cli.parser(__doc__)
     ap.add_argument("--quick", action="store_true", help="fewer frequencies (a smoke run)")
@@ -288,10 +440,15 @@ def main(argv=None) -> int:
     ap.add_argument("--serial", action="store_true", help="run in this process, no dask")
     ap.add_argument("--no-progress", action="store_true")
     ap.add_argument("--out-dir", type=Path, default=cli.OUT_DIR)
+    ap.add_argument(
+        "--valve", action="append", metavar="NAME", help="a catalog valve's datasheet figures (or 'all')"
+    )
     args = ap.parse_args(argv)
     version = cli.version(args)
     if cli.archive_missing(version):
         return 1
+    if args.valve:
+        return valve_main(args, version)
 
     per_decade = 2 if args.quick else 4
     small_f = list(np.geomspace(5.0, 20000.0, int(round(per_decade * math.log10(4000))) + 1))

@@ -12,6 +12,8 @@ in tests/python share, one module for each concern.
 * ``report``: the tables printed by the examples, ``plotting``: figures to files,
   ``paper_plots``: the paper's figures redrawn from FMU runs,
 * ``frequency``: frequency responses through the FMU and the analytic ones (eq. 3/eq. 4),
+* ``valves``: the valve catalog (valves.toml: datasheet figures as start values) and the
+  datasheet's figures measured back through the FMU,
 * ``study``: parameter-study designs, scenarios and metrics; ``cluster``: many runs on
   dask.distributed (LocalCluster or a cluster by address) or in this process,
 * ``bad_input``: the bad-input cases run in a child process.
@@ -41,6 +43,7 @@ from .bands import (
 from .contract import (
     CONTROL_MODES,
     DRIVERS,
+    ENUMERATIONS,
     INPUTS,
     NOMINAL,
     OUTPUTS,

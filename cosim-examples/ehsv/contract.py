@@ -5,7 +5,8 @@ reads the FMI 2.0 archive's with ``fmpy.read_model_description`` the first time 
 is asked for, so importing the package does not need a built FMU:
 
 * ``DRIVERS``, ``CONTROL_MODES`` and ``SOLVER_METHODS``: the enumerations, name -> integer
-  value,
+  value; ``ENUMERATIONS``: every enumeration variable's items the same way (variable name
+  -> {item name -> value}, e.g. ``ENUMERATIONS["valve.parameterization"]["datasheet"]``),
 * ``INPUTS``: name -> (unit, start), ``OUTPUTS``: name -> unit (None for a Boolean),
 * ``NOMINAL``: every parameter's default (start) value in SI units (float, int or bool),
 * ``flow_gain()``: the valve's static gain Q_valve / i_coil = K3 K1 / Kw, m3/s per A.
@@ -35,6 +36,7 @@ class Interface:
     inputs: dict[str, tuple[str | None, float]]
     outputs: dict[str, str | None]
     parameters: dict[str, float | int | bool]
+    enumerations: dict[str, dict[str, int]]
 
 
 def _start(var):
@@ -65,6 +67,7 @@ def interface(version: str = SOURCE_VERSION) -> Interface:
         inputs={v.name: (v.unit, float(v.start)) for v in vs if v.causality == "input"},
         outputs={v.name: (None if v.type == "Boolean" else v.unit) for v in vs if v.causality == "output"},
         parameters={v.name: _start(v) for v in vs if v.causality == "parameter"},
+        enumerations={v.name: _items(v) for v in vs if v.type == "Enumeration"},
     )
 
 
@@ -96,6 +99,7 @@ SOLVER_METHODS: Mapping[str, int] = _FromArchive("solver_methods")
 INPUTS: Mapping[str, tuple[str | None, float]] = _FromArchive("inputs")
 OUTPUTS: Mapping[str, str | None] = _FromArchive("outputs")
 NOMINAL: Mapping[str, float | int | bool] = _FromArchive("parameters")
+ENUMERATIONS: Mapping[str, dict[str, int]] = _FromArchive("enumerations")
 
 
 def parameters(overrides: Mapping | None = None) -> dict:

@@ -76,6 +76,7 @@ OUTPUTS = {
     "x_piston": "m",
     "v_piston": "m/s",
     "F_hydraulic": "N",
+    "Q_supply": "m3/s",
     "F_rod": "N",
     "dF_rod_dx": "N/m",
     "dF_rod_dv": "N.s/m",
