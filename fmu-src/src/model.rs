@@ -10,6 +10,8 @@
 
 use std::cell::RefCell;
 
+use crate::units::readable;
+
 use crate::contract::{communication_point_tolerance, ModelContract};
 use crate::physics::bytes::{frame, unframe, ByteReader};
 use crate::physics::{
@@ -413,7 +415,10 @@ impl Model {
         match fault {
             StepFault::BeforeInitialisation => "doStep before initialisation ended".into(),
             StepFault::StepSize => {
-                format!("communication step size {step} is not a positive finite number")
+                format!(
+                    "communication step size {} is not a positive finite number",
+                    readable(step)
+                )
             }
             StepFault::TimeNotFinite => {
                 format!("currentCommunicationPoint {current_time} is not finite")
@@ -524,9 +529,10 @@ fn check_input_derivative(index: usize, value: f64) -> Result<(), String> {
     let bound = if index == vr::V_ROD { MAX_ROD_ACCELERATION } else { f64::INFINITY };
     if !value.is_finite() || value.abs() > bound {
         return Err(format!(
-            "the derivative of {} = {value} rejected: allowed range is [-{bound:e}, {bound:e}] \
-             per second",
-            VARIABLES[index].name
+            "the derivative of {} = {} rejected: allowed range is [-{bound}, {bound}] per second",
+            VARIABLES[index].name,
+            readable(value),
+            bound = readable(bound)
         ));
     }
     Ok(())
@@ -544,8 +550,10 @@ fn check_x_ref_fits(x_ref: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
     let half = 0.5 * v[vr::CYLINDER_STROKE];
     if x_ref.abs() > half {
         return Err(format!(
-            "x_ref = {x_ref} rejected: allowed range is [{}, {half}] (+-cylinder.stroke/2)",
-            -half
+            "x_ref = {} rejected: allowed range is [{}, {}] (+-cylinder.stroke/2)",
+            readable(x_ref),
+            readable(-half),
+            readable(half)
         ));
     }
     Ok(())
@@ -564,9 +572,11 @@ fn check_x_rod_fits(x_rod: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
     let (lo, hi) = geometry.rod_travel();
     if !(lo..=hi).contains(&x_rod) {
         return Err(format!(
-            "x_rod = {x_rod} rejected: allowed range is [{lo:.6}, {hi:.6}] (the stroke and, \
-             beyond each end, the end stop's deepest penetration before the chamber's dead \
-             volume is used up)"
+            "x_rod = {} rejected: allowed range is [{}, {}] (the stroke and, beyond each end, \
+             the end stop's deepest penetration before the chamber's dead volume is used up)",
+            readable(x_rod),
+            readable(lo),
+            readable(hi)
         ));
     }
     Ok(())
@@ -622,9 +632,10 @@ impl Model {
         };
         match warning {
             InputWarning::CurrentAboveRating => format!(
-                "i_ref = {} A is above the valve's rated current {VALVE_RATED_CURRENT} A: the \
-                 linear valve model is extrapolated (the command is in A: 5 mA is 0.005)",
-                v[vr::I_REF]
+                "i_ref = {} A is above the valve's rated current {} A: the linear valve model \
+                 is extrapolated (the command is in A: 5 mA is 0.005)",
+                readable(v[vr::I_REF]),
+                readable(VALVE_RATED_CURRENT)
             ),
             InputWarning::NoDriverSupply => {
                 unconnected("V_supply", "V", "the driver has no supply and cannot drive the coil")
@@ -691,11 +702,13 @@ fn asks_for_motion(mode: ControlMode, v: &[f64; N_VARIABLES]) -> bool {
 
 fn command_text(v: &[f64; N_VARIABLES]) -> String {
     match control_mode(v) {
-        ControlMode::Current => format!("i_ref = {} A", v[vr::I_REF]),
-        ControlMode::Flow => format!("Q_ref = {} m3/s", v[vr::Q_REF]),
-        ControlMode::Position => {
-            format!("x_ref = {} m (x_piston = {} m)", v[vr::X_REF], v[vr::X_PISTON])
-        }
+        ControlMode::Current => format!("i_ref = {} A", readable(v[vr::I_REF])),
+        ControlMode::Flow => format!("Q_ref = {} m3/s", readable(v[vr::Q_REF])),
+        ControlMode::Position => format!(
+            "x_ref = {} m (x_piston = {} m)",
+            readable(v[vr::X_REF]),
+            readable(v[vr::X_PISTON])
+        ),
     }
 }
 

@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 mod common;
 use common::*;
+use ehsv_actuator::units::readable;
 use ehsv_actuator::variables::{ENUMERATIONS, VARIABLES};
 
 /// Runs both versions of a generic test.
@@ -388,7 +389,7 @@ fn bad_input_in_step_mode_is_an_error_naming_the_cause<F: Api>() {
             &["coil.L", "fixed parameter"],
         ),
         ("zero step", |f| f.step(H, 0.0), &["step size 0 "]),
-        ("negative step", |f| f.step(H, -1e-4), &["step size -0.0001"]),
+        ("negative step", |f| f.step(H, -1e-4), &["step size -1e-4"]),
         ("NaN step", |f| f.step(H, f64::NAN), &["step size NaN"]),
         ("infinite step", |f| f.step(H, f64::INFINITY), &["step size inf"]),
         (
@@ -835,13 +836,13 @@ fn inputs_beyond_their_physical_range_are_refused<F: Api>() {
         (vr::X_REF, 0.05, "[-0.04, 0.04] (+-cylinder.stroke/2)"),
         (vr::F_EXT, -1e12, "[-100000, 100000]"),
         (vr::V_SUPPLY, 1500.0, "[0, 1000]"),
-        (vr::P_SUPPLY, -1.0, "[0, 100000000]"),
+        (vr::P_SUPPLY, -1.0, "[0, 1e8]"),
     ];
     for &(input, bad, range) in cases {
         let name = VARIABLES[input].name;
         let before = f.get(input).1;
         assert_eq!(f.set(input, bad), ERROR, "{name} = {bad}");
-        assert_error_logged(&f, name, &[name, &format!("{bad}"), range]);
+        assert_error_logged(&f, name, &[name, &format!("{name} = {}", readable(bad)), range]);
         assert_eq!(f.get(input).1, before, "{name} unchanged");
     }
     // The edges are allowed and the instance steps on.
@@ -945,7 +946,7 @@ fn input_warnings_come_once_when_the_condition_begins<F: Api>() {
     assert_eq!(g.step(2.0 * H, H), Status::Warning);
     let lines = warnings(&g);
     assert_eq!(lines.len(), 1, "{lines:?}");
-    assert!(lines[0].contains("p_supply") && lines[0].contains("Q_ref = 0.0001"), "{lines:?}");
+    assert!(lines[0].contains("p_supply") && lines[0].contains("Q_ref = 1e-4"), "{lines:?}");
 }
 
 // ---------------------------------------------------------------- tunable parameters

@@ -255,7 +255,7 @@ fn large_and_small_numbers_print_parseably() {
 fn markdown_has_a_row_per_variable() {
     let md = variables_markdown();
     assert_eq!(md.lines().count(), 2 + VARIABLES.len());
-    assert!(md.contains("| `coil.L` | parameter | H | 3.2 | [0.0001, 1000] |"), "{md}");
+    assert!(md.contains("| `coil.L` | parameter | H | 3.2 | [1e-4, 1000] |"), "{md}");
     assert!(md.contains("| 2 (opamp_pi) |"));
     assert!(enumerations_markdown().contains("- 2 `opamp_pi`"));
 }

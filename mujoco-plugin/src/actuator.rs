@@ -10,7 +10,7 @@
 //! carries it bit for bit).
 
 use ehsv_physics::bytes::ByteReader;
-use ehsv_physics::{Inputs, Physics};
+use ehsv_physics::{readable, Inputs, Physics};
 use ehsv_variables::variables::{inputs, vr, write_outputs, Causality, N_VARIABLES, VARIABLES};
 
 use crate::config::Config;
@@ -75,7 +75,7 @@ fn unpack(slots: &[f64], n: usize) -> Result<Vec<u8>, String> {
     for slot in slots {
         let bits = slot.to_bits();
         if bits & !0xffff_ffff_ffff != SLOT_BASE {
-            return Err(format!("plugin_state holds {slot}, not a packed state slot"));
+            return Err(format!("plugin_state holds {}, not a packed state slot", readable(*slot)));
         }
         bytes.extend_from_slice(&bits.to_le_bytes()[..BYTES_PER_SLOT]);
     }
@@ -184,7 +184,8 @@ impl Actuator {
         let n = slots[self.layout.length_slot()];
         if n != self.layout.state_bytes as f64 {
             return Err(format!(
-                "plugin_state holds {n} state bytes, this actuator has {}",
+                "plugin_state holds {} state bytes, this actuator has {}",
+                readable(n),
                 self.layout.state_bytes
             ));
         }

@@ -4,7 +4,7 @@
 //! enumeration its item's name. Defaults are the FMU's start values, with
 //! `cylinder.port = motion` (the only port a MuJoCo actuator has).
 
-use ehsv_physics::{ControlMode, Params, RodPort};
+use ehsv_physics::{readable, ControlMode, Params, RodPort};
 use ehsv_variables::variables::{
     params, start_values, vr, Causality, Coded, VarType, Variable, ENUMERATIONS, N_VARIABLES,
     VARIABLES,
@@ -17,6 +17,17 @@ pub const SUBSTEP: &str = "substep";
 pub const LENGTH_MID: &str = "length_mid";
 /// Default of [`SUBSTEP`] (s).
 pub const DEFAULT_SUBSTEP: f64 = 1e-4;
+/// The shortest [`SUBSTEP`] (s), where a sub-step stops making sense: the model's fastest
+/// clock ticks at 1 MHz (`loop.f_sample`, `hbridge.f_pwm` and `hbridge.f_sample` end at
+/// 1e6 Hz, and the physics cuts its steps at their instants anyway) and fixed_cost's
+/// shortest internal step (`solver.h_internal`) is 1 us. A shorter sub-step resolves
+/// nothing more and only costs: MuJoCo's step is cut into timestep / substep physics steps,
+/// so 1e-300 made the first mj_step run forever and 1e-12 took 11 s for one 1e-4 s step.
+/// At 1e-6 a 1e-3 s MuJoCo step is 1000 physics steps.
+pub const MIN_SUBSTEP: f64 = 1e-6;
+/// The longest [`SUBSTEP`] (s): 10 ms, five times the longest host timestep the robots
+/// are shown to stand at (2e-3 s, docs/mujoco.md).
+pub const MAX_SUBSTEP: f64 = 0.01;
 
 /// Inputs the host drives (the transmission gives x_rod and v_rod, the control the
 /// command), or that mean nothing with the motion port (F_ext): not configurable.
@@ -86,19 +97,22 @@ fn items_text(var: &Variable) -> String {
     format!(", nor one of: {}", names.join(", "))
 }
 
-/// A plugin key's value: finite, and a substep within (0, 0.01] s.
+/// A plugin key's value: finite, and a substep within [[`MIN_SUBSTEP`], [`MAX_SUBSTEP`]].
 fn parse_own(key: &str, text: &str) -> Result<f64, String> {
     let value: f64 = text
         .trim()
         .parse()
         .map_err(|_| format!("{key} = '{}' rejected: not a number", text.trim()))?;
     let fits = match key {
-        SUBSTEP => value > 0.0 && value <= 0.01,
+        SUBSTEP => (MIN_SUBSTEP..=MAX_SUBSTEP).contains(&value),
         _ => value.is_finite(),
     };
     if !fits {
-        let range = if key == SUBSTEP { "(0, 0.01] s" } else { "a finite length in m" };
-        return Err(format!("{key} = {value} rejected: allowed is {range}"));
+        let range = match key {
+            SUBSTEP => format!("[{}, {}] s", readable(MIN_SUBSTEP), readable(MAX_SUBSTEP)),
+            _ => "a finite length in m".to_string(),
+        };
+        return Err(format!("{key} = {} rejected: allowed is {range}", readable(value)));
     }
     Ok(value)
 }
@@ -213,6 +227,8 @@ mod tests {
             ("p_supply", "nan"),
             ("substep", "0"),
             ("substep", "1"),
+            ("substep", "1e-300"),
+            ("substep", "9.99e-7"),
             ("length_mid", "inf"),
             ("cylinder.port", "force"),
         ];
@@ -220,6 +236,26 @@ mod tests {
             let err = parse_pairs(&[(key, value)]).unwrap_err();
             assert!(err.contains(key), "{key} = {value}: {err}");
         }
+    }
+
+    /// Numbers in refusals as a person reads them (1e300, not 301 digits).
+    #[test]
+    fn refusals_print_numbers_readably() {
+        let cases = [
+            (
+                "driver.slew_rate",
+                "1e300",
+                "driver.slew_rate = 1e300 rejected: allowed range is (0, 1e10]",
+            ),
+            ("coil.L", "1e-300", "coil.L = 1e-300 rejected: allowed range is [1e-4, 1000]"),
+            ("substep", "1e-300", "substep = 1e-300 rejected: allowed is [1e-6, 0.01] s"),
+            ("p_supply", "-1e300", "p_supply = -1e300 rejected: allowed range is [0, 1e8]"),
+        ];
+        for (key, value, message) in cases {
+            assert_eq!(parse_pairs(&[(key, value)]).unwrap_err(), message);
+        }
+        let c = parse_pairs(&[("substep", "1e-6")]).unwrap();
+        assert_eq!(c.substep, MIN_SUBSTEP);
     }
 
     #[test]

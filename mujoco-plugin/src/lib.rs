@@ -175,7 +175,8 @@ unsafe extern "C" fn compute(m: *const MjModel, d: *mut MjData, instance: c_int,
             Ok(force) => force,
             Err(e) => {
                 if !std::mem::replace(&mut inst.warned, true) {
-                    warn(&format!("step at t = {} refused, force 0: {e}", host.time));
+                    let t = ehsv_physics::readable(host.time);
+                    warn(&format!("step at t = {t} refused, force 0: {e}"));
                 }
                 0.0
             }

@@ -88,9 +88,9 @@ pub(crate) fn mode_systems(c: &Coefficients) -> Result<[ModeSystem; MODES.len()]
     let systems = MODES.map(|m| mode_system(c, m));
     if !systems.iter().all(|s| s.a.iter().all(|x| x.is_finite()) && s.radius.is_finite()) {
         return Err(format!(
-            "the parameters give a model too stiff to represent (coefficients like (coil.R + coil.R_sense)/coil.L = {:e} 1/s, \
+            "the parameters give a model too stiff to represent (coefficients like (coil.R + coil.R_sense)/coil.L = {} 1/s, \
              valve.f_n, coil.K_b/coil.L overflow); use physically sized values",
-            c.r_total / c.inductance
+            crate::readable::readable(c.r_total / c.inductance)
         ));
     }
     Ok(systems)

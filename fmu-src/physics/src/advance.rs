@@ -152,7 +152,9 @@ fn through_time_events(
         a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);
     if time_events > MAX_TIME_EVENTS_PER_STEP {
         return Err(format!(
-            "a step of {step} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use shorter communication steps"
+            "a step of {} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use \
+             shorter communication steps",
+            crate::readable::readable(step)
         ));
     }
     let mut t = t_start;

@@ -28,6 +28,7 @@ mod integrators;
 mod numerics;
 mod params;
 mod physics;
+mod readable;
 mod retune;
 #[cfg(feature = "whole-model")]
 pub mod rhs;
@@ -45,6 +46,7 @@ pub use params::{
 };
 pub use physics::Physics;
 use physics::StepEnd;
+pub use readable::readable;
 pub use state::bytes;
 
 use actuator::Actuator;

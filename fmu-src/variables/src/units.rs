@@ -1,5 +1,8 @@
 //! Units used by the variable table: SI base-unit exponents and display units.
-//! The XML renderer writes these as `<UnitDefinitions>`.
+//! The XML renderer writes these as `<UnitDefinitions>`. Numbers in messages:
+//! [`readable`] (the physics crate's, which writes its own messages with it).
+
+pub use crate::physics::readable;
 
 /// Exponents of kg, m, s, A, K, mol, cd, rad.
 pub type BaseExponents = [i8; 8];

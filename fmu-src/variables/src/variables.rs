@@ -135,16 +135,16 @@ impl Variable {
             ValueFault::NotInteger => "an enumeration value is an integer".to_string(),
             ValueFault::OutOfRange => format!("allowed range is {}", self.range_text()),
         };
-        format!("{} = {value} rejected: {why}", self.name)
+        format!("{} = {} rejected: {why}", self.name, crate::units::readable(value))
     }
     pub fn range_text(&self) -> String {
         let lo = match self.min {
-            Some(m) if self.min_exclusive => format!("({m}"),
-            Some(m) => format!("[{m}"),
+            Some(m) if self.min_exclusive => format!("({}", crate::units::readable(m)),
+            Some(m) => format!("[{}", crate::units::readable(m)),
             None => "(-inf".to_string(),
         };
         let hi = match self.max {
-            Some(m) => format!("{m}]"),
+            Some(m) => format!("{}]", crate::units::readable(m)),
             None => "+inf)".to_string(),
         };
         format!("{lo}, {hi}")
@@ -260,7 +260,7 @@ macro_rules! coded_enumeration {
         impl Coded for $ty {
             fn from_code(value: f64) -> Result<Self, String> {
                 <$ty>::ALL.get(value as usize).copied().filter(|_| value >= 0.0).ok_or_else(|| {
-                    format!("{} = {value} is not available (0 to {})", $variable, <$ty>::ALL.len() - 1)
+                    format!("{} = {} is not available (0 to {})", $variable, crate::units::readable(value), <$ty>::ALL.len() - 1)
                 })
             }
             fn code(self) -> f64 {
@@ -1116,8 +1116,10 @@ mod tests {
     fn check_names_variable_and_range() {
         let l = &VARIABLES[vr::COIL_L];
         let msg = l.check(-1.0).unwrap_err();
-        assert!(msg.contains("coil.L") && msg.contains("[0.0001, 1000]"), "{msg}");
-        assert!(l.check(f64::NAN).unwrap_err().contains("finite"));
+        assert!(msg.contains("coil.L = -1 rejected") && msg.contains("[1e-4, 1000]"), "{msg}");
+        assert!(l.check(f64::NAN).unwrap_err().contains("NaN rejected: the value must be finite"));
+        let slew = VARIABLES[vr::DRIVER_SLEW_RATE].check(1e300).unwrap_err();
+        assert_eq!(slew, "driver.slew_rate = 1e300 rejected: allowed range is (0, 1e10]");
     }
 
     #[test]

@@ -57,6 +57,7 @@ use crate::components::cylinder_terms::{
 };
 use crate::numerics::root_finding::newton_in_bracket;
 use crate::params::{Outputs, RodPort};
+use crate::readable::readable;
 
 pub(crate) use crate::components::cylinder_params::{
     CylinderParams, CylinderState, Mat4, Vec4, N_STATES, PA, PB, V, X,
@@ -88,9 +89,11 @@ pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Re
         if volume.is_nan() || volume < min_volume {
             return Err(format!(
                 "x_piston = {} m is through the {end}stroke/2 end stop into chamber {chamber}'s \
-                 dead volume (chamber volume {volume:e} m3, cylinder.V_dead = {} m3): the end \
+                 dead volume (chamber volume {} m3, cylinder.V_dead = {} m3): the end \
                  stop (cylinder.k_endstop) cannot hold the load; step refused",
-                state.x, params.v_dead
+                readable(state.x),
+                readable(volume),
+                readable(params.v_dead)
             ));
         }
     }

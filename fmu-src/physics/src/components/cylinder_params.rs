@@ -5,6 +5,7 @@
 
 use crate::components::metering_ports::MeteringPorts;
 use crate::params::{CylinderLoadParams, ValveParams};
+use crate::readable::readable;
 
 /// Chamber volumes never shrink below this fraction of the dead volume (keeps the pressure
 /// equations finite). Reaching it means the piston went through the end of the cylinder:
@@ -208,18 +209,23 @@ impl CylinderParams {
     /// The rules between parameters.
     pub(crate) fn validate(&self) -> Result<(), String> {
         if !(self.ports.k3.is_finite() && self.ports.k3 > 0.0) {
-            return Err(format!("valve.K3 = {} rejected: must be positive", self.ports.k3));
+            return Err(format!(
+                "valve.K3 = {} rejected: must be positive",
+                readable(self.ports.k3)
+            ));
         }
         if self.rod >= self.bore {
             return Err(format!(
                 "cylinder.rod = {} rejected: must be smaller than cylinder.bore = {}",
-                self.rod, self.bore
+                readable(self.rod),
+                readable(self.bore)
             ));
         }
         if self.p_cavitation >= self.p_tank {
             return Err(format!(
                 "hydraulics.p_cavitation = {} rejected: must be below hydraulics.p_tank = {}",
-                self.p_cavitation, self.p_tank
+                readable(self.p_cavitation),
+                readable(self.p_tank)
             ));
         }
         Ok(())
@@ -230,10 +236,11 @@ impl CylinderParams {
     pub(crate) fn check_supply(&self, p_supply: f64) -> Result<(), String> {
         if self.relief_p_crack > 0.0 && p_supply - self.p_tank >= self.relief_p_crack {
             return Err(format!(
-                "p_supply = {p_supply} Pa is not below the relief valves' setting \
+                "p_supply = {} Pa is not below the relief valves' setting \
                  hydraulics.p_tank + relief.p_crack = {} Pa: they would open in normal \
                  operation; raise relief.p_crack, or set it to 0 to remove them",
-                self.relief_opening()
+                readable(p_supply),
+                readable(self.relief_opening())
             ));
         }
         Ok(())

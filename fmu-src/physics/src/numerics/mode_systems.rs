@@ -24,6 +24,7 @@ use crate::numerics::augmented_exp::exp_augmented;
 use crate::numerics::augmented_state::{
     ceil_count, dot, propagate, rate, rate_of_derivative, Mat, Vector, U, VF, XS,
 };
+use crate::readable::readable;
 
 /// Coarse sub-steps keep |lambda|*h below this; guards are checked at their ends.
 const THETA_COARSE: f64 = 6.0;
@@ -313,12 +314,18 @@ pub(crate) fn checked_exponential(a: &Mat, span: f64, step: f64) -> Result<Mat, 
         scaled.column_iter().map(|c| c.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max);
     if norm.is_nan() || norm > MAX_SCALED_NORM {
         return Err(format!(
-            "a sub-step of {step} s with these parameters is beyond exact propagation (|A h| = {norm:e}); step refused"
+            "a sub-step of {} s with these parameters is beyond exact propagation (|A h| = {}); \
+             step refused",
+            readable(step),
+            readable(norm)
         ));
     }
     exp_augmented(&scaled).ok_or_else(|| {
         format!(
-            "a sub-step of {step} s with these parameters has no exact propagator (|A h| = {norm:e}); step refused"
+            "a sub-step of {} s with these parameters has no exact propagator (|A h| = {}); step \
+             refused",
+            readable(step),
+            readable(norm)
         )
     })
 }

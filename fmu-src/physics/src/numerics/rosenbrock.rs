@@ -30,6 +30,7 @@ use crate::components::cylinder::{
 };
 use crate::components::cylinder_jacobian::linearise;
 use crate::numerics::lu4::Lu4;
+use crate::readable::readable;
 
 /// A Rosenbrock method in the transformed form of Hairer & Wanner and of KPP (Sandu et al.):
 /// `(I/(h gamma) - J) k_i = f(t + c_i h, y + sum_j a_ij k_j) + sum_j (c_ij/h) k_j + h d_i f_t`,
@@ -254,7 +255,7 @@ pub(crate) fn advance_with_rate(
         return Ok(stats);
     }
     if !(h.is_finite() && h > 0.0) {
-        return Err(format!("hydraulics: step {h} s is not a positive finite number"));
+        return Err(format!("hydraulics: step {} s is not a positive finite number", readable(h)));
     }
     let model = Rhs { params, p_supply, load, spool: &spool };
     let mut call = Call {
@@ -272,7 +273,8 @@ pub(crate) fn advance_with_rate(
     loop {
         if stats.accepted + stats.rejected >= MAX_STEPS_PER_CALL {
             return Err(format!(
-                "hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {h} s"
+                "hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {} s",
+                readable(h)
             ));
         }
         // The last step lands exactly on h; remember the untruncated size for the next call.
@@ -297,8 +299,9 @@ pub(crate) fn advance_with_rate(
         }
         if call.step <= 1e-14 * h.max(1e-6) {
             return Err(format!(
-                "hydraulics: step size underflow at {} s into a step of {h} s",
-                call.tau
+                "hydraulics: step size underflow at {} s into a step of {} s",
+                readable(call.tau),
+                readable(h)
             ));
         }
         // A step the call boundary cut to at most half of what Rodas4's controller wants is

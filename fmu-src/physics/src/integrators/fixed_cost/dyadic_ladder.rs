@@ -62,7 +62,11 @@ impl DyadicLadders {
         let mut span = self.top;
         for rung in self.rungs[slot].iter_mut() {
             *rung = exp_augmented(&(sys.a * span)).ok_or_else(|| {
-                format!("a sub-step of {span} s with these parameters has no exact propagator; step refused")
+                format!(
+                    "a sub-step of {} s with these parameters has no exact propagator; step \
+                     refused",
+                    crate::readable::readable(span)
+                )
             })?;
             span *= 0.5;
         }
