@@ -36,7 +36,8 @@ mod state;
 
 pub use components::rod_port::RATE_PROBE;
 pub use components::valve_datasheet::{
-    figures as valve_figures, ValveFigures, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ, MAX_LAP,
+    figures as valve_figures, ValveFigures, DATASHEET_HZ, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ,
+    MAX_LAP,
 };
 pub use events::{StepEvents, Work};
 pub use params::{

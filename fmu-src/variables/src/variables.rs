@@ -236,7 +236,7 @@ use Variability::*;
 
 use crate::physics::{
     ControlMode, DriverKind, Inputs, Outputs, Params, RodPort, SolverMethod, ValveFigures,
-    ValveParameterization, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ, MAX_LAP,
+    ValveParameterization, DATASHEET_HZ, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ, MAX_LAP,
 };
 
 /// A Boolean or enumeration field, stored in the value array as its integer value.
@@ -824,8 +824,8 @@ variable_table! {
     VALVE_PARAMETERIZATION => param[valve.parameterization] coded: enumeration("valve.parameterization", &VALVE_PARAMETERIZATION_TYPE, "How the valve is given: gains (valve.K1 ... valve.f_n) or datasheet (valve.Q_rated, i_rated, dp_rated, f_90, f_3dB, zeta; the gains follow at initialisation)"),
     VALVE_Q_RATED => param[valve.datasheet.q_rated] real: param("valve.Q_rated", Some("m3/s"), "Datasheet: no-load flow at valve.i_rated and the total drop valve.dp_rated").positive().range(Some(0.0), Some(1.0e-2)),
     VALVE_I_RATED => param[valve.datasheet.i_rated] real: param("valve.i_rated", Some("A"), "Datasheet: rated current").range(Some(1.0e-4), Some(10.0 * VALVE_RATED_CURRENT)),
-    VALVE_F_90 => param[valve.datasheet.f_90] real: param("valve.f_90", Some("Hz"), "Datasheet: frequency at which Q_valve/i_coil lags 90 degrees (small signal, ideal current)").range(Some(1.0), Some(1.0e4)),
-    VALVE_F_3DB => param[valve.datasheet.f_3db] real: param("valve.f_3dB", Some("Hz"), "Datasheet: frequency at which |Q_valve/i_coil| is 3 dB down (0: not given, the first stage keeps the Moog 30's ratio of its natural frequency to the spool loop's bandwidth)").non_negative().range(Some(0.0), Some(1.0e4)),
+    VALVE_F_90 => param[valve.datasheet.f_90] real: param("valve.f_90", Some("Hz"), "Datasheet: frequency at which Q_valve/i_coil lags 90 degrees (small signal, ideal current)").range(Some(DATASHEET_HZ.0), Some(DATASHEET_HZ.1)),
+    VALVE_F_3DB => param[valve.datasheet.f_3db] real: param("valve.f_3dB", Some("Hz"), "Datasheet: frequency at which |Q_valve/i_coil| is 3 dB down (0: not given, the first stage keeps the Moog 30's ratio of its natural frequency to the spool loop's bandwidth)").non_negative().range(Some(0.0), Some(DATASHEET_HZ.1)),
     // Laps up to MAX_LAP either way (a spool's stroke is a few mm).
     VALVE_LAP => param[valve.lap] real: param("valve.lap", Some("m"), "Spool lap at null: > 0 underlap (null leakage, finite pressure gain), < 0 overlap (dead band), 0 critically centred; in datasheet form valve.Q_leak_null may set it instead").range(Some(-MAX_LAP), Some(MAX_LAP)),
     // Null leakage up to 1e-3 m3/s (60 L/min): a valve's whole rated flow.

@@ -11,6 +11,7 @@
 //! amplitude is 3 dB down where `|D|^2 = 2`.
 
 use crate::params::{ValveDatasheet, ValveParameterization, ValveParams, VALVE_RATED_CURRENT};
+use crate::readable::readable as r;
 use std::f64::consts::PI;
 
 /// The Moog 30's spool stroke at its rated current (m), `K1 i_r / Kw` of the paper's gains.
@@ -30,6 +31,8 @@ pub const MAX_FIRST_STAGE_HZ: f64 = 1.0e5;
 pub const MAX_AMPLIFIER_GAIN: f64 = 10.0;
 /// The largest lap, either way (m): a spool's stroke is a few millimetres.
 pub const MAX_LAP: f64 = 1.0e-3;
+/// The datasheet frequencies' range (Hz): from 1 Hz to ten times the fastest servo valve's.
+pub const DATASHEET_HZ: (f64, f64) = (1.0, 1.0e4);
 
 /// What a valve's gains amount to, in a datasheet's terms (the calculated parameters).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -109,9 +112,9 @@ fn datasheet_figures_unset(d: &ValveDatasheet) -> Result<(), String> {
     match named.iter().find(|(_, value, start)| value.to_bits() != start.to_bits()) {
         None => Ok(()),
         Some((name, value, _)) => Err(format!(
-            "{name} = {value:e} is a datasheet figure, but valve.parameterization = gains does \
-             not read it: set valve.parameterization = datasheet, or leave {name} at its start \
-             value"
+            "{name} = {} is a datasheet figure, but valve.parameterization = gains does not \
+             read it: set valve.parameterization = datasheet, or leave {name} at its start value",
+            r(*value)
         )),
     }
 }
@@ -124,11 +127,17 @@ fn from_datasheet(v: &ValveParams) -> Result<ValveParams, String> {
     let k2 = v.spool_area * v.kf / (v.kw * tau);
     if f_n > MAX_FIRST_STAGE_HZ || k2 > MAX_AMPLIFIER_GAIN {
         return Err(format!(
-            "valve.f_90 = {:e} Hz and valve.f_3dB = {:e} Hz (valve.zeta = {}) need a first stage \
-             at {f_n:e} Hz with K2 = {k2:e} m2/s (A_s Kf/(Kw tau), tau = {tau:e} s): beyond \
-             {MAX_FIRST_STAGE_HZ:e} Hz or {MAX_AMPLIFIER_GAIN} m2/s, where this model of a valve \
-             ends",
-            d.f_90, d.f_3db, v.zeta
+            "valve.f_90 = {} Hz and valve.f_3dB = {} Hz (valve.zeta = {}) need a first stage \
+             at {} Hz with K2 = {} m2/s (A_s Kf/(Kw tau), tau = {} s): beyond {} Hz or {} m2/s, \
+             where this model of a valve ends",
+            r(d.f_90),
+            r(d.f_3db),
+            r(v.zeta),
+            r(f_n),
+            r(k2),
+            r(tau),
+            r(MAX_FIRST_STAGE_HZ),
+            r(MAX_AMPLIFIER_GAIN)
         ));
     }
     let k1 = v.kw * RATED_STROKE / d.i_rated;
@@ -143,8 +152,9 @@ fn from_datasheet(v: &ValveParams) -> Result<ValveParams, String> {
 fn first_stage(f_90: f64, f_3db: f64, zeta: f64) -> Result<(f64, f64), String> {
     if zeta <= 0.0 {
         return Err(format!(
-            "valve.zeta = {zeta}: a valve set from its datasheet needs a damped first stage \
-             (valve.zeta > 0), else its flow never lags 90 degrees"
+            "valve.zeta = {}: a valve set from its datasheet needs a damped first stage \
+             (valve.zeta > 0), else its flow never lags 90 degrees",
+            r(zeta)
         ));
     }
     let w90 = 2.0 * PI * f_90;
@@ -153,10 +163,12 @@ fn first_stage(f_90: f64, f_3db: f64, zeta: f64) -> Result<(f64, f64), String> {
         let q = (2.0 * zeta * PAPER_WN_TAU).sqrt();
         if q <= 1.0 {
             return Err(format!(
-                "valve.zeta = {zeta} with valve.f_3dB not given (the paper's wn tau = \
-                 {PAPER_WN_TAU:.4}) puts the -90 degree point above the first stage: \
-                 valve.zeta must exceed {:.4}, or give valve.f_3dB",
-                0.5 / PAPER_WN_TAU
+                "valve.zeta = {} with valve.f_3dB not given (the paper's wn tau = {}) puts the \
+                 -90 degree point above the first stage: valve.zeta must exceed {}, or give \
+                 valve.f_3dB",
+                r(zeta),
+                r(significant(PAPER_WN_TAU)),
+                r(significant(0.5 / PAPER_WN_TAU))
             ));
         }
         let wn = q * w90;
@@ -182,17 +194,33 @@ fn first_stage(f_90: f64, f_3db: f64, zeta: f64) -> Result<(f64, f64), String> {
 #[cold]
 fn no_such_valve(f_90: f64, f_3db: f64, zeta: f64) -> String {
     let (lo, hi) = possible_ratios(zeta, MAX_FIRST_STAGE_HZ / f_90);
+    // Within the variables' own ranges: f_90 from DATASHEET_HZ's lower end, f_3dB from 0.
+    let within = |a: f64, b: f64, floor: f64| {
+        let (a, b) = (a.max(floor), b.min(DATASHEET_HZ.1));
+        format!("({}, {})", r(significant(a)), r(significant(b)))
+    };
     format!(
-        "valve.f_3dB = {f_3db:e} Hz with valve.f_90 = {f_90:e} Hz and valve.zeta = {zeta}: no \
-         valve of this structure (torque motor, first stage, spool loop) has both. At this \
-         damping f_3dB/f_90 lies in ({lo:.4}, {hi:.4}): with this f_90, valve.f_3dB in \
-         ({:.4e}, {:.4e}) Hz; with this f_3dB, valve.f_90 in ({:.4e}, {:.4e}) Hz (or \
-         valve.f_3dB = 0: not given)",
-        lo * f_90,
-        hi * f_90,
-        f_3db / hi,
-        f_3db / lo
+        "valve.f_3dB = {} Hz with valve.f_90 = {} Hz and valve.zeta = {}: no valve of this \
+         structure (torque motor, first stage, spool loop) has both. At this damping \
+         f_3dB/f_90 lies in ({}, {}): with this f_90, valve.f_3dB in {} Hz; with this f_3dB, \
+         valve.f_90 in {} Hz (or valve.f_3dB = 0: not given)",
+        r(f_3db),
+        r(f_90),
+        r(zeta),
+        r(significant(lo)),
+        r(significant(hi)),
+        within(lo * f_90, hi * f_90, 0.0),
+        within(f_3db / hi, f_3db / lo, DATASHEET_HZ.0)
     )
+}
+
+/// `x` to four significant digits: a range's ends as a person reads them.
+fn significant(x: f64) -> f64 {
+    if x == 0.0 || !x.is_finite() {
+        return x;
+    }
+    let scale = 10f64.powi(3 - x.abs().log10().floor() as i32);
+    (x * scale).round() / scale
 }
 
 /// The range of `f_3dB / f_90` over every first stage faster than the -90 degree point
@@ -261,18 +289,19 @@ fn lap_and_pilot(v: &ValveParams, k1: f64, k3: f64) -> Result<(f64, f64), String
     if d.q_leak_null == 0.0 {
         if d.pressure_gain != 0.0 {
             return Err(format!(
-                "valve.pressure_gain = {:e} Pa/A needs valve.Q_leak_null: the lap that gives a \
+                "valve.pressure_gain = {} Pa/A needs valve.Q_leak_null: the lap that gives a \
                  pressure gain leaks",
-                d.pressure_gain
+                r(d.pressure_gain)
             ));
         }
         return Ok((v.lap, 0.0));
     }
     if v.lap != 0.0 {
         return Err(format!(
-            "valve.lap = {:e} m and valve.Q_leak_null = {:e} m3/s both set: the leakage sets \
-             the lap in datasheet form; leave valve.lap at 0",
-            v.lap, d.q_leak_null
+            "valve.lap = {} m and valve.Q_leak_null = {} m3/s both set: the leakage sets the \
+             lap in datasheet form; leave valve.lap at 0",
+            r(v.lap),
+            r(d.q_leak_null)
         ));
     }
     let per_metre = lap_leakage_per_metre(k3, d.p_leak_ref, v.dp_rated);
@@ -285,21 +314,24 @@ fn lap_and_pilot(v: &ValveParams, k1: f64, k3: f64) -> Result<(f64, f64), String
     };
     if lap > widest * (1.0 + 1e-12) {
         return Err(format!(
-            "valve.pressure_gain = {:e} Pa/A needs a lap of {lap:e} m, which leaks {:e} m3/s at \
-             valve.p_leak_ref = {:e} Pa, more than valve.Q_leak_null = {:e} m3/s: with this \
-             leakage the pressure gain is at least {:e} Pa/A",
-            d.pressure_gain,
-            per_metre * lap,
-            d.p_leak_ref,
-            d.q_leak_null,
-            2.0 * d.p_leak_ref * k1 / (v.kw * widest)
+            "valve.pressure_gain = {} Pa/A needs a lap of {} m, which leaks {} m3/s at \
+             valve.p_leak_ref = {} Pa, more than valve.Q_leak_null = {} m3/s: with this leakage \
+             the pressure gain is at least {} Pa/A",
+            r(d.pressure_gain),
+            r(significant(lap)),
+            r(significant(per_metre * lap)),
+            r(d.p_leak_ref),
+            r(d.q_leak_null),
+            r(significant(2.0 * d.p_leak_ref * k1 / (v.kw * widest) * (1.0 + 1e-3)))
         ));
     }
     if lap > MAX_LAP {
         return Err(format!(
-            "valve.Q_leak_null = {:e} m3/s needs a lap of {lap:e} m, beyond {MAX_LAP:e} m (a \
+            "valve.Q_leak_null = {} m3/s needs a lap of {} m, beyond {} m (a \
              spool's stroke is a few millimetres)",
-            d.q_leak_null
+            r(d.q_leak_null),
+            r(significant(lap)),
+            r(MAX_LAP)
         ));
     }
     Ok((lap, (d.q_leak_null - per_metre * lap).max(0.0)))
