@@ -549,14 +549,22 @@ fn check_inputs_fit(v: &[f64; N_VARIABLES]) -> Result<(), String> {
 fn check_x_ref_fits(x_ref: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
     let half = 0.5 * v[vr::CYLINDER_STROKE];
     if x_ref.abs() > half {
-        return Err(format!(
-            "x_ref = {} rejected: allowed range is [{}, {}] (+-cylinder.stroke/2)",
-            readable(x_ref),
-            readable(-half),
-            readable(half)
-        ));
+        return Err(position_refusal("x_ref", x_ref, (-half, half), "+-cylinder.stroke/2"));
     }
     Ok(())
+}
+
+/// The refusal of a position input outside its travel `(lo, hi)`. Out of line and cold:
+/// the checks run whenever the position is set, the formatting only when one fails.
+#[cold]
+#[inline(never)]
+fn position_refusal(name: &str, value: f64, (lo, hi): (f64, f64), why: &str) -> String {
+    format!(
+        "{name} = {} rejected: allowed range is [{}, {}] ({why})",
+        readable(value),
+        readable(lo),
+        readable(hi)
+    )
 }
 
 /// x_rod within the stroke and the end stops' deepest penetration,
@@ -571,13 +579,9 @@ fn check_x_rod_fits(x_rod: f64, v: &[f64; N_VARIABLES]) -> Result<(), String> {
     };
     let (lo, hi) = geometry.rod_travel();
     if !(lo..=hi).contains(&x_rod) {
-        return Err(format!(
-            "x_rod = {} rejected: allowed range is [{}, {}] (the stroke and, beyond each end, \
-             the end stop's deepest penetration before the chamber's dead volume is used up)",
-            readable(x_rod),
-            readable(lo),
-            readable(hi)
-        ));
+        let why = "the stroke and, beyond each end, the end stop's deepest penetration before \
+                   the chamber's dead volume is used up";
+        return Err(position_refusal("x_rod", x_rod, (lo, hi), why));
     }
     Ok(())
 }
