@@ -151,11 +151,7 @@ fn through_time_events(
     let time_events =
         a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);
     if time_events > MAX_TIME_EVENTS_PER_STEP {
-        return Err(format!(
-            "a step of {} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use \
-             shorter communication steps",
-            crate::readable::readable(step)
-        ));
+        return Err(too_many_events(step));
     }
     let mut t = t_start;
     loop {
@@ -195,4 +191,16 @@ fn through_time_events(
 /// last bits, and each difference would need a matrix exponential of its own.
 fn nominal_span(span: f64, nominal: [f64; 2], slack: f64) -> f64 {
     nominal.into_iter().find(|n| (span - n).abs() <= slack).unwrap_or(span)
+}
+
+/// The refusal of a step with more time events than [`MAX_TIME_EVENTS_PER_STEP`]. Cold and
+/// out of line: the count is checked on every step.
+#[cold]
+#[inline(never)]
+fn too_many_events(step: f64) -> String {
+    format!(
+        "a step of {} s holds more than {MAX_TIME_EVENTS_PER_STEP} PWM/sampling instants; use \
+         shorter communication steps",
+        crate::readable::readable(step)
+    )
 }

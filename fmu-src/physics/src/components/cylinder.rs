@@ -87,17 +87,28 @@ pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Re
     for (volume, chamber, end) in [(volume_a, "A", "-"), (volume_b, "B", "+")] {
         // A NaN position is refused too.
         if volume.is_nan() || volume < min_volume {
-            return Err(format!(
-                "x_piston = {} m is through the {end}stroke/2 end stop into chamber {chamber}'s \
-                 dead volume (chamber volume {} m3, cylinder.V_dead = {} m3): the end \
-                 stop (cylinder.k_endstop) cannot hold the load; step refused",
-                readable(state.x),
-                readable(volume),
-                readable(params.v_dead)
-            ));
+            return Err(through_the_stop(params, state.x, (volume, chamber, end)));
         }
     }
     Ok(())
+}
+
+/// [`check_inside`]'s message. Cold and out of line: the check runs on every step.
+#[cold]
+#[inline(never)]
+fn through_the_stop(
+    params: &CylinderParams,
+    x: f64,
+    (volume, chamber, end): (f64, &str, &str),
+) -> String {
+    format!(
+        "x_piston = {} m is through the {end}stroke/2 end stop into chamber {chamber}'s dead \
+         volume (chamber volume {} m3, cylinder.V_dead = {} m3): the end stop \
+         (cylinder.k_endstop) cannot hold the load; step refused",
+        readable(x),
+        readable(volume),
+        readable(params.v_dead)
+    )
 }
 
 /// Which chambers' relief valves pass flow at this state: `[A, B]`.

@@ -235,15 +235,23 @@ impl CylinderParams {
     /// operation (a chamber holds up to p_S at stall or on a stop).
     pub(crate) fn check_supply(&self, p_supply: f64) -> Result<(), String> {
         if self.relief_p_crack > 0.0 && p_supply - self.p_tank >= self.relief_p_crack {
-            return Err(format!(
-                "p_supply = {} Pa is not below the relief valves' setting \
-                 hydraulics.p_tank + relief.p_crack = {} Pa: they would open in normal \
-                 operation; raise relief.p_crack, or set it to 0 to remove them",
-                readable(p_supply),
-                readable(self.relief_opening())
-            ));
+            return Err(self.supply_refusal(p_supply));
         }
         Ok(())
+    }
+
+    /// [`CylinderParams::check_supply`]'s message. Cold and out of line: the check runs
+    /// on every step.
+    #[cold]
+    #[inline(never)]
+    fn supply_refusal(&self, p_supply: f64) -> String {
+        format!(
+            "p_supply = {} Pa is not below the relief valves' setting hydraulics.p_tank + \
+             relief.p_crack = {} Pa: they would open in normal operation; raise \
+             relief.p_crack, or set it to 0 to remove them",
+            readable(p_supply),
+            readable(self.relief_opening())
+        )
     }
 
     #[cfg(test)]

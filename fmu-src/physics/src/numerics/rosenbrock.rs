@@ -239,6 +239,34 @@ pub(crate) fn advance(
     advance_with_rate(params, state, h, p_supply, load, spool, memory)
 }
 
+/// Why [`hydraulics_refusal`] refuses a step of the cylinder's integrator.
+#[derive(Clone, Copy)]
+enum Refusal {
+    NotFinite,
+    TooManySteps,
+    Underflow,
+}
+
+/// The message of a refused step of `h` (at `tau` into it). Cold and out of line: the
+/// integrator's loop tests for each on every internal step.
+#[cold]
+#[inline(never)]
+fn hydraulics_refusal(why: Refusal, h: f64, tau: f64) -> String {
+    match why {
+        Refusal::NotFinite => {
+            format!("hydraulics: step {} s is not a positive finite number", readable(h))
+        }
+        Refusal::TooManySteps => format!(
+            "hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {} s",
+            readable(h)
+        ),
+        Refusal::Underflow => format!(
+            "hydraulics: step size underflow at {} s into a step of {} s",
+            readable(tau),
+            readable(h)
+        ),
+    }
+}
 /// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn advance_with_rate(
@@ -255,7 +283,7 @@ pub(crate) fn advance_with_rate(
         return Ok(stats);
     }
     if !(h.is_finite() && h > 0.0) {
-        return Err(format!("hydraulics: step {} s is not a positive finite number", readable(h)));
+        return Err(hydraulics_refusal(Refusal::NotFinite, h, 0.0));
     }
     let model = Rhs { params, p_supply, load, spool: &spool };
     let mut call = Call {
@@ -272,10 +300,7 @@ pub(crate) fn advance_with_rate(
     let mut lin: Option<Linearisation> = None;
     loop {
         if stats.accepted + stats.rejected >= MAX_STEPS_PER_CALL {
-            return Err(format!(
-                "hydraulics: more than {MAX_STEPS_PER_CALL} internal steps in one step of {} s",
-                readable(h)
-            ));
+            return Err(hydraulics_refusal(Refusal::TooManySteps, h, 0.0));
         }
         // The last step lands exactly on h; remember the untruncated size for the next call.
         let wanted = call.step;
@@ -298,11 +323,7 @@ pub(crate) fn advance_with_rate(
             }
         }
         if call.step <= 1e-14 * h.max(1e-6) {
-            return Err(format!(
-                "hydraulics: step size underflow at {} s into a step of {} s",
-                readable(call.tau),
-                readable(h)
-            ));
+            return Err(hydraulics_refusal(Refusal::Underflow, h, call.tau));
         }
         // A step the call boundary cut to at most half of what Rodas4's controller wants is
         // smooth at this size: try the cheaper Rodas3 under the same tolerance first and keep
