@@ -36,6 +36,8 @@ DEFAULT_DECADE = 10.0
 #: finite-difference step in the unit box: large enough that the exact solver's error
 #: control (rtol 1e-7) does not swamp the difference, small against the box
 DIFF_STEP = 1e-4
+#: the first stage of each start fits residuals averaged over this time, s
+SMOOTH_S = 5e-3
 #: a Jacobian eigenvalue below this fraction of the largest is a direction the data does
 #: not determine (infinite variance along it)
 EIG_CUTOFF = 1e-10
@@ -341,10 +343,15 @@ class Problem:
                 return v
         return 0.0
 
-    def residuals(self, units) -> np.ndarray:
+    def residuals(self, units, smooth: int = 1) -> np.ndarray:
+        """Weighted residuals at the unit-box point ``units``, each output's averaged over
+        ``smooth`` samples (1: raw)."""
+        from scipy.ndimage import uniform_filter1d
+
         values = [u.to_value(x) for u, x in zip(self.unknowns, units, strict=True)]
         model = self.model(values)
-        return np.concatenate([(model[k] - y) / self.sigma[k] for k, y in self.rec.outputs.items()])
+        r = [(model[k] - y) / self.sigma[k] for k, y in self.rec.outputs.items()]
+        return np.concatenate([uniform_filter1d(x, smooth) if smooth > 1 else x for x in r])
 
 
 def _fast_io(inst, names_in, names_out):
@@ -414,25 +421,36 @@ def _run_start(problem: Problem, u0, progress=None) -> dict:
 
 
 def _least_squares(problem: Problem, u0, progress) -> dict:
+    """Two stages: residuals averaged over SMOOTH_S first, then the raw ones from there.
+    The oil column's oscillations make the raw cost a narrow well on a plateau (a model
+    whose oscillation is out of phase is as wrong as one that does not oscillate); the
+    averaged residuals keep the slow response, whose cost slopes toward the well from
+    far off."""
     from scipy.optimize import least_squares
 
-    def fun(u):
-        r = problem.residuals(u)
-        if progress is not None:
-            progress(0.5 * float(r @ r))
-        return r
+    window = int(round(SMOOTH_S / float(np.median(np.diff(problem.rec.time)))))
+    stages = ([window] if window >= 3 else []) + [1]
+    start = list(u0)
+    for w in stages:
 
-    # the unknowns live in the unit box, so one scale and one finite-difference step fit all
-    res = least_squares(
-        fun,
-        u0,
-        bounds=(0.0, 1.0),
-        method="trf",
-        x_scale=np.ones(len(u0)),
-        diff_step=DIFF_STEP,
-        xtol=1e-10,
-        max_nfev=MAX_NFEV_PER_UNKNOWN * len(u0),
-    )
+        def fun(u, w=w):
+            r = problem.residuals(u, smooth=w)
+            if progress is not None:
+                progress(0.5 * float(r @ r))
+            return r
+
+        # the unknowns live in the unit box: one scale and one finite-difference step fit all
+        res = least_squares(
+            fun,
+            u0,
+            bounds=(0.0, 1.0),
+            method="trf",
+            x_scale=np.ones(len(u0)),
+            diff_step=DIFF_STEP,
+            xtol=1e-10,
+            max_nfev=MAX_NFEV_PER_UNKNOWN * len(u0),
+        )
+        u0 = res.x
     return {
         "u": res.x,
         "cost": float(res.cost),
@@ -440,7 +458,7 @@ def _least_squares(problem: Problem, u0, progress) -> dict:
         "fun": res.fun,
         "evaluations": problem.evaluations,
         "status": int(res.status),
-        "start": list(u0),
+        "start": start,
     }
 
 
