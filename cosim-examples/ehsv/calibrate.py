@@ -710,6 +710,7 @@ def calibrate(
 def _start_entry(unknowns, result) -> dict:
     entry = {"start": [u.to_value(x) for u, x in zip(unknowns, result["start"], strict=True)]}
     entry["cost"] = _json_number(result["cost"])
+    entry["evaluations"] = int(result["evaluations"])
     if "error" in result:
         entry["error"] = result["error"]
     return entry

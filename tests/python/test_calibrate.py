@@ -92,27 +92,37 @@ def test_ssv_validates_and_reproduces_the_fit(fitted, recording):
         np.testing.assert_array_equal(again[name], direct[name])
 
 
+def test_fmi3_simulates_as_fmi2(recording):
+    rec = cal.read_recording(recording.iloc[:300], "fmi3")
+    a, b = (cal.simulate(v, {**POSITION, **TRUTH}, rec) for v in ("fmi3", "fmi2"))
+    for name in rec.outputs:
+        np.testing.assert_array_equal(a[name], b[name])
+
+
 def test_sensor_offset_and_delay_on_dask(recording):
-    """offset:p_A and delay:x_piston next to the bulk modulus, two starts on a
-    LocalCluster of two workers."""
+    """offset:p_A and delay:x_piston next to the bulk modulus, two starts on a running
+    dask cluster named by its address (the --scheduler path)."""
+    from dask.distributed import LocalCluster
+
     df = recording.copy()
     t = df["time"].to_numpy()
     df["p_A"] += 2e4
     df["x_piston"] = np.interp(t - 3e-4, t, df["x_piston"].to_numpy())
-    fit = cal.calibrate(
-        df,
-        ["cylinder.beta", "offset:p_A", "delay:x_piston"],
-        bounds={"delay:x_piston": "0:0.002"},
-        set_values={
-            "control_mode": "position",
-            "cylinder.mass": 7.0,
-            "cylinder.F_coulomb": 26.0,
-            "cylinder.beta": 9e8,
-        },
-        starts=2,
-        workers=2,
-        progress=False,
-    )
+    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0") as dask_cluster:
+        fit = cal.calibrate(
+            df,
+            ["cylinder.beta", "offset:p_A", "delay:x_piston"],
+            bounds={"delay:x_piston": "0:0.002"},
+            set_values={
+                "control_mode": "position",
+                "cylinder.mass": 7.0,
+                "cylinder.F_coulomb": 26.0,
+                "cylinder.beta": 9e8,
+            },
+            starts=2,
+            scheduler=dask_cluster.scheduler_address,
+            progress=False,
+        )
     p = fit.report["parameters"]
     assert p["cylinder.beta"]["value"] == pytest.approx(8e8, rel=0.01)
     assert p["offset:p_A"]["value"] == pytest.approx(2e4, rel=0.01)
