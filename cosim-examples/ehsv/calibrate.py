@@ -164,8 +164,8 @@ def resolve_set(set_values: dict, version: str, method: str | None = None) -> di
     out = {}
     for name, text in set_values.items():
         var = variables.get(name)
-        if var is None or var.causality != "parameter":
-            raise CalibrationError(f"--set {name}: the FMU has no parameter of that name")
+        if var is None or var.causality not in ("parameter", "input"):
+            raise CalibrationError(f"--set {name}: the FMU has no parameter or input of that name")
         value = _number(name, text, var)
         lo, hi = _range(var)
         if not lo <= float(value) <= hi:
@@ -213,8 +213,10 @@ class Unknown:
 
 
 def _parameter_unknown(name, var, fixed, bounds) -> Unknown:
-    if var is None or var.causality != "parameter":
+    if var is None:
         raise CalibrationError(f"--fit {name}: the FMU has no parameter of that name")
+    if var.causality != "parameter":
+        raise CalibrationError(f"--fit {name}: a {var.causality}, only parameters are fitted")
     if name in STRUCTURAL or var.type not in _REAL:
         raise CalibrationError(
             f"--fit {name}: structural ({var.type}), give it by --set, it cannot be fitted"
@@ -504,26 +506,35 @@ def _solve(problem: Problem, starts, client, progress: bool) -> list[dict]:
 
 
 # -- uncertainty --------------------------------------------------------------------------
-def intervals(unknowns, u, jac, fun) -> tuple[list, np.ndarray, np.ndarray]:
-    """95 % intervals (t distribution, s2 = r.r / (n - p)), the correlation matrix and
-    which directions are undetermined, from the weighted Jacobian in the unit box.
+def intervals(unknowns, u, jac, fun, blocks: int = 1) -> tuple[list, np.ndarray, np.ndarray]:
+    """95 % intervals (t distribution), the correlation matrix and which directions are
+    undetermined, from the weighted Jacobian in the unit box; ``fun`` holds ``blocks``
+    outputs' residuals one after the other.
 
-    Cov = s2 (J^T J)^-1 through an eigen-decomposition: an eigenvalue below EIG_CUTOFF of
-    the largest is a direction the data does not fix, and a parameter with weight on it
-    has an unbounded interval. Intervals are mapped back through each unknown's scale
-    (asymmetric in value for log-scaled ones)."""
+    Cov = s2 (J^T J)^-1, with s2 = r.r / (n - p) taken per output: an output whose noise
+    was misjudged (the estimate from second differences sees some of the signal) would
+    otherwise lend its error to the others. With one s2 per output this is the sandwich
+    A^-1 (J^T S J) A^-1, A = J^T J, S the per-output s2. A^-1 comes from an
+    eigen-decomposition: an eigenvalue below EIG_CUTOFF of the largest is a direction the
+    data does not fix, and a parameter with weight on it has an unbounded interval.
+    Intervals are mapped back through each unknown's scale (asymmetric in value for
+    log-scaled ones)."""
     from scipy.stats import t as student
 
     n, p = jac.shape
-    s2 = float(fun @ fun) / max(n - p, 1)
+    dof = max(n - p, 1)
+    s2 = np.concatenate(
+        [np.full(len(b), float(b @ b) / len(b) * n / dof) for b in np.array_split(fun, blocks)]
+    )
     lam, vec = np.linalg.eigh(jac.T @ jac)
     keep = lam > EIG_CUTOFF * max(lam.max(), 1e-300)
-    cov = s2 * (vec[:, keep] / lam[keep]) @ vec[:, keep].T
+    a_inv = (vec[:, keep] / lam[keep]) @ vec[:, keep].T
+    cov = a_inv @ (jac.T @ (s2[:, None] * jac)) @ a_inv
     loose = (np.abs(vec[:, ~keep]) > 1e-3).any(axis=1) if (~keep).any() else np.zeros(p, bool)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
-    tq = float(student.ppf(0.975, max(n - p, 1)))
+    tq = float(student.ppf(0.975, dof))
     cis = []
     for i, unk in enumerate(unknowns):
         if loose[i]:
@@ -647,6 +658,9 @@ def prepare(
     if check is not None and (set(check.outputs) != set(rec.outputs) or set(check.inputs) != set(rec.inputs)):
         raise CalibrationError(f"{check.source}: its columns differ from {rec.source}'s")
     fixed = resolve_set(dict(set_values or {}), version, method)
+    for name in fixed:
+        if name in rec.inputs:
+            raise CalibrationError(f"--set {name}: an input the recording already gives as a column")
     if not fit:
         raise CalibrationError("--fit names nothing")
     unknowns = resolve_unknowns(list(fit), _parse_bounds(bounds), fixed, rec, version)
@@ -726,7 +740,7 @@ def _finish(problem: Problem, results, check, out, wall) -> Fit:
         raise RuntimeError("every start failed:\n" + "\n".join(r["error"] for r in results))
     unknowns = problem.unknowns
     values = [u.to_value(x) for u, x in zip(unknowns, best["u"], strict=True)]
-    cis, corr, loose = intervals(unknowns, best["u"], best["jac"], best["fun"])
+    cis, corr, loose = intervals(unknowns, best["u"], best["jac"], best["fun"], len(problem.rec.outputs))
     flags = identifiable(unknowns, cis, corr, loose)
     report = {
         "parameters": {

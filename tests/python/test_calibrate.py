@@ -185,6 +185,9 @@ BAD = {
     "bounds outside range": (_frame, {"bounds": {"cylinder.mass": "0.0001:10"}}, "cylinder.mass"),
     "offset of an unmeasured output": (_frame, {"fit": ["offset:p_A"]}, "offset:p_A"),
     "bad --set": (_frame, {"set_values": {"control_mode": "sideways"}}, "control_mode"),
+    "--set of a recorded input": (_frame, {"set_values": {"x_ref": "0.001"}}, "x_ref"),
+    "calculated parameter": (_frame, {"fit": ["valve.derived.K1"]}, "valve.derived.K1"),
+    "--sigma of an unmeasured output": (_frame, {"sigma": {"p_B": 1e3}}, "p_B"),
 }
 
 
