@@ -335,7 +335,7 @@ class Problem:
         out = {}
         for name, y in sim.items():
             delay = self._sensor(values, DELAY + name)
-            y = np.interp(rec.time - delay, rec.time, y) if delay else y
+            y = _delayed(rec.time, y, delay) if delay else y
             out[name] = y + self._sensor(values, OFFSET + name)
         return out
 
@@ -354,6 +354,15 @@ class Problem:
         model = self.model(values)
         r = [(model[k] - y) / self.sigma[k] for k, y in self.rec.outputs.items()]
         return np.concatenate([uniform_filter1d(x, smooth) if smooth > 1 else x for x in r])
+
+
+def _delayed(t: np.ndarray, y: np.ndarray, delay: float) -> np.ndarray:
+    """y read at t - delay (its first value before the start): a cubic spline, whose slope
+    in the delay is continuous, where linear interpolation would put a kink in the cost
+    at every whole sample of delay."""
+    from scipy.interpolate import CubicSpline
+
+    return CubicSpline(t, y)(np.maximum(t - delay, t[0]))
 
 
 def _fast_io(inst, names_in, names_out):
@@ -649,6 +658,21 @@ def _parse_bounds(bounds) -> dict:
     return out
 
 
+def _sigmas(sigma: dict, rec: Recording) -> dict:
+    """--sigma NAME=VALUE checked: a measured output, a positive number."""
+    out = {}
+    for name, text in sigma.items():
+        if name not in rec.outputs:
+            raise CalibrationError(f"--sigma {name}: not a measured output of the recording")
+        try:
+            out[name] = float(text)
+        except ValueError:
+            raise CalibrationError(f"--sigma {name}={text}: not a number") from None
+        if not (out[name] > 0 and math.isfinite(out[name])):
+            raise CalibrationError(f"--sigma {name}={text}: must be positive and finite")
+    return out
+
+
 def prepare(
     data, fit, *, bounds=None, set_values=None, sigma=None, method="exact", version="fmi2", validate=None
 ) -> tuple[Problem, Recording | None]:
@@ -664,14 +688,8 @@ def prepare(
     if not fit:
         raise CalibrationError("--fit names nothing")
     unknowns = resolve_unknowns(list(fit), _parse_bounds(bounds), fixed, rec, version)
-    sig = {}
-    for name, y in rec.outputs.items():
-        sig[name] = float((sigma or {}).get(name, 0.0)) or noise_sigma(y)
-    for name in sigma or {}:
-        if name not in rec.outputs:
-            raise CalibrationError(f"--sigma {name}: not a measured output of the recording")
-        if not float(sigma[name]) > 0:
-            raise CalibrationError(f"--sigma {name}={sigma[name]}: must be positive")
+    sig = {name: noise_sigma(y) for name, y in rec.outputs.items()}
+    sig.update(_sigmas(sigma or {}, rec))
     _warn_excitation(rec, unknowns)
     return Problem(version, fixed, unknowns, rec, sig), check
 
@@ -730,7 +748,7 @@ def _start_entry(unknowns, result) -> dict:
     return entry
 
 
-def report_names(unknowns) -> set[str]:
+def _names(unknowns) -> set[str]:
     return {u.name for u in unknowns}
 
 
@@ -759,7 +777,7 @@ def _finish(problem: Problem, results, check, out, wall) -> Fit:
         "cost": best["cost"],
         "starts": [_start_entry(unknowns, r) for r in results],
         "evaluations": int(sum(r["evaluations"] for r in results)),
-        "set": {k: v for k, v in problem.fixed.items() if k not in report_names(unknowns)},
+        "set": {k: v for k, v in problem.fixed.items() if k not in _names(unknowns)},
         "samples": len(problem.rec.time),
     }
     if check is not None:
@@ -831,7 +849,7 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     version = "fmi3" if args.fmi3 else "fmi2"
     try:
-        sigma = {k: float(v) for k, v in _pairs(args.sigma, "--sigma").items()}
+        sigma = _pairs(args.sigma, "--sigma")
         fit = calibrate(
             args.data,
             [s.strip() for s in args.fit.split(",") if s.strip()],
@@ -850,9 +868,6 @@ def main(argv=None) -> int:
             progress=not args.no_progress,
         )
     except (CalibrationError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except ValueError as e:  # a --sigma value that is not a number
         print(f"error: {e}", file=sys.stderr)
         return 2
     print(_summary(fit.report))

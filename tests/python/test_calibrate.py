@@ -188,6 +188,7 @@ BAD = {
     "--set of a recorded input": (_frame, {"set_values": {"x_ref": "0.001"}}, "x_ref"),
     "calculated parameter": (_frame, {"fit": ["valve.derived.K1"]}, "valve.derived.K1"),
     "--sigma of an unmeasured output": (_frame, {"sigma": {"p_B": 1e3}}, "p_B"),
+    "--sigma not a number": (_frame, {"sigma": {"x_piston": "tiny"}}, "x_piston=tiny"),
 }
 
 
