@@ -17,6 +17,8 @@ in tests/python share, one module for each concern.
 * ``study``: parameter-study designs, scenarios and metrics; ``cluster``: many runs on
   dask.distributed (LocalCluster or a cluster by address) or in this process,
 * ``bad_input``: the bad-input cases run in a child process.
+* ``calibrate``: parameters, sensor offsets and delays fitted to a recording
+  (``python -m ehsv.calibrate``, docs/calibration.md).
 * ``cli``: what the example commands share (--fmi3, the archive check, out/, figure lines).
 
 The names below are the package's public surface for the common runs (``import ehsv;
