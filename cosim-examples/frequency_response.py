@@ -57,6 +57,14 @@ COLORS = {
 }
 
 
+def report_failures(results: list[dict]) -> bool:
+    """Prints the tasks that failed (their "error"); whether any did."""
+    failed = [r for r in results if "error" in r]
+    for r in failed:
+        print(f"failed: {r['error']}", file=sys.stderr)
+    return bool(failed)
+
+
 def feasible(v_supply: float, amplitude: float) -> bool:
     """A current of this amplitude needs at least R A volts at DC."""
     return ehsv.NOMINAL["coil.R"] * amplitude < v_supply
@@ -419,10 +427,7 @@ def valve_main(args, version: str) -> int:
         null = cluster.map_points(vv.measure_null, nulls, client=client, progress=progress, desc="null")
     finally:
         cluster.close(client)
-    failed = [r for r in resp + null if "error" in r]
-    for r in failed:
-        print(f"failed: {r['error']}", file=sys.stderr)
-    if failed:
+    if report_failures(resp + null):
         return 1
     print(f"EhsvActuator ({version}): catalog valves, datasheet against the FMU")
     for name, r, n in zip(chosen, resp, null, strict=True):
@@ -473,10 +478,7 @@ def main(argv=None) -> int:
         )
     finally:
         cluster.close(client)
-    failed = [c for c in curves + onset_results if "error" in c]
-    for c in failed:
-        print(f"failed: {c['error']}", file=sys.stderr)
-    if failed:
+    if report_failures(curves + onset_results):
         return 1
     small_curves, large_curves = curves[: len(small)], curves[len(small) :]
     print(f"EhsvActuator ({version}) frequency responses")
