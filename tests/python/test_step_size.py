@@ -3,7 +3,7 @@
 The FMU integrates exactly between communication points, so the outputs at shared time
 points must not depend on the communication step (1e-6 ... 1e-3 s), and for the linear
 drivers they must equal the exact solution of the linear ODE (ehsv.linear_step_response:
-numpy matrix exponential). Tolerance: 1e-6 of the step size of the signal, i.e. 5e-9 A for
+scipy's matrix exponential). Tolerance: 1e-6 of the step size of the signal, i.e. 5e-9 A for
 a 5 mA step and 1e-6 of the final flow for Q_valve.
 """
 
