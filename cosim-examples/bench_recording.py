@@ -8,12 +8,15 @@ offsets and delays.
 
 The levels (+-1.5 mm, each held 20-60 ms) keep the piston well inside its stroke and
 excite the oil column (bulk modulus, dead volume, mass) at every change and the friction
-whenever the piston stops. ``--noise`` is white noise as a fraction of each output's range.
+whenever the piston stops. ``--noise`` is noise as a fraction of each output's range:
+white, or with ``--noise-corr RHO`` coloured (a first-order autoregression of lag-1
+correlation RHO, the same variance), as a real bench's filtered sensors give.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -37,7 +40,20 @@ def levels(t: np.ndarray, seed: int) -> np.ndarray:
     return x_ref
 
 
-def recording(truth: dict, *, duration=0.2, rate=1e4, noise=0.0, offsets=None, delays=None, seed=0):
+def coloured(e: np.ndarray, rho: float) -> np.ndarray:
+    """White unit noise ``e`` made AR(1) with lag-1 correlation ``rho``, unit variance."""
+    if rho == 0.0:
+        return e
+    from scipy.signal import lfilter
+
+    out = lfilter([math.sqrt(1.0 - rho * rho)], [1.0, -rho], e)
+    out[0] = e[0]  # stationary from the first sample
+    return out
+
+
+def recording(
+    truth: dict, *, duration=0.2, rate=1e4, noise=0.0, offsets=None, delays=None, seed=0, noise_corr=0.0
+):
     """The recording as a DataFrame (time, x_ref, x_piston, p_A, p_B)."""
     t = np.arange(int(round(duration * rate)) + 1) / rate
     df = pd.DataFrame({"time": t, "x_ref": levels(t, seed), **{n: np.zeros_like(t) for n in OUTPUTS}})
@@ -45,7 +61,7 @@ def recording(truth: dict, *, duration=0.2, rate=1e4, noise=0.0, offsets=None, d
     rng = np.random.default_rng(seed + 1)
     for name in OUTPUTS:
         v = np.interp(t - (delays or {}).get(name, 0.0), t, y[name]) + (offsets or {}).get(name, 0.0)
-        df[name] = v + noise * np.ptp(y[name]) * rng.standard_normal(len(t))
+        df[name] = v + noise * np.ptp(y[name]) * coloured(rng.standard_normal(len(t)), noise_corr)
     return df
 
 
@@ -58,6 +74,7 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=0.2, help="s")
     ap.add_argument("--rate", type=float, default=1e4, help="samples per second")
     ap.add_argument("--noise", type=float, default=0.0, help="fraction of each output's range")
+    ap.add_argument("--noise-corr", type=float, default=0.0, help="lag-1 correlation of the noise")
     ap.add_argument("--set", action="append", metavar="NAME=VALUE", help="hidden parameter values")
     ap.add_argument("--offset", action="append", metavar="OUTPUT=VALUE")
     ap.add_argument("--delay", action="append", metavar="OUTPUT=SECONDS")
@@ -73,6 +90,7 @@ def main(argv=None) -> int:
         offsets=_floats(args.offset),
         delays=_floats(args.delay),
         seed=args.seed,
+        noise_corr=args.noise_corr,
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     if args.out.suffix == ".parquet":

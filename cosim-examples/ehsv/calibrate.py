@@ -42,6 +42,9 @@ SMOOTH_S = 5e-3
 #: not determine (infinite variance along it)
 EIG_CUTOFF = 1e-10
 CORRELATION_LIMIT = 0.99
+#: an output whose residuals' autocorrelation_inflation exceeds this (lag-1 correlation
+#: above 1/3) is reported as not fitted to its noise
+CORRELATED_RESIDUALS = 2.0
 #: a start that has not converged after this many evaluations per unknown is given up
 #: (a start far from the optimum wanders in this model's rugged landscape)
 MAX_NFEV_PER_UNKNOWN = 40
@@ -520,7 +523,8 @@ def intervals(unknowns, u, jac, fun, blocks: int = 1) -> tuple[list, np.ndarray,
     undetermined, from the weighted Jacobian in the unit box; ``fun`` holds ``blocks``
     outputs' residuals one after the other.
 
-    Cov = s2 (J^T J)^-1, with s2 = r.r / (n - p) taken per output: an output whose noise
+    Cov = s2 (J^T J)^-1, with s2 = r.r / (n - p) taken per output (and scaled by
+    ``autocorrelation_inflation`` of its residuals): an output whose noise
     was misjudged (the estimate from second differences sees some of the signal) would
     otherwise lend its error to the others. With one s2 per output this is the sandwich
     A^-1 (J^T S J) A^-1, A = J^T J, S the per-output s2. A^-1 comes from an
@@ -533,7 +537,10 @@ def intervals(unknowns, u, jac, fun, blocks: int = 1) -> tuple[list, np.ndarray,
     n, p = jac.shape
     dof = max(n - p, 1)
     s2 = np.concatenate(
-        [np.full(len(b), float(b @ b) / len(b) * n / dof) for b in np.array_split(fun, blocks)]
+        [
+            np.full(len(b), float(b @ b) / len(b) * n / dof * autocorrelation_inflation(b))
+            for b in np.array_split(fun, blocks)
+        ]
     )
     lam, vec = np.linalg.eigh(jac.T @ jac)
     keep = lam > EIG_CUTOFF * max(lam.max(), 1e-300)
@@ -552,6 +559,21 @@ def intervals(unknowns, u, jac, fun, blocks: int = 1) -> tuple[list, np.ndarray,
         lo, hi = u[i] - tq * sd[i], u[i] + tq * sd[i]
         cis.append([_to_value_unbounded(unk, lo), _to_value_unbounded(unk, hi)])
     return cis, corr, loose
+
+
+def autocorrelation_inflation(r: np.ndarray) -> float:
+    """The factor by which correlated residuals widen a variance: (1 + rho) / (1 - rho),
+    rho the residuals' lag-1 autocorrelation, the AR(1) ratio n / n_eff for regressors
+    that vary slowly against the sampling (the model's sensitivities at 10 kHz do). White
+    residuals give about 1; the noise of a real bench (filters, quantisation, unmodelled
+    dynamics) is coloured, and n samples of it carry the information of fewer. A negative
+    rho is taken as 0 (intervals are never narrowed); rho is capped at 0.99."""
+    r = r - r.mean()
+    rr = float(r @ r)
+    if r.size < 3 or rr == 0.0:
+        return 1.0
+    rho = min(max(float(r[1:] @ r[:-1]) / rr, 0.0), 0.99)
+    return (1.0 + rho) / (1.0 - rho)
 
 
 def _to_value_unbounded(unk: Unknown, x: float) -> float:
@@ -578,9 +600,12 @@ def _fit_quality(problem: Problem, values, rec: Recording) -> dict:
     model = problem.model(values, rec)
     out = {}
     for name, y in rec.outputs.items():
-        rms = float(np.sqrt(np.mean((model[name] - y) ** 2)))
+        r = model[name] - y
+        rms = float(np.sqrt(np.mean(r**2)))
         span = float(np.ptp(y))
         out[name] = {"rms": rms, "nrmse": rms / span if span > 0 else None, "sigma": problem.sigma.get(name)}
+        # the factor its s2 got in the intervals; far above 1: the residuals are not noise
+        out[name]["autocorrelation_inflation"] = autocorrelation_inflation(r)
     return out
 
 
@@ -839,6 +864,11 @@ def _summary(report: dict) -> str:
         lines.append(f"{name:28} {p['value']:12.6g} {ci:>27}  {flag}")
     for name, o in report["outputs"].items():
         lines.append(f"output {name}: rms {o['rms']:.4g}, nrmse {o['nrmse']}")
+        if o.get("autocorrelation_inflation", 1.0) > CORRELATED_RESIDUALS:
+            lines.append(
+                f"  its residuals are correlated (variance x{o['autocorrelation_inflation']:.3g} in the "
+                "intervals): the model does not reproduce it (a local minimum, or an effect it lacks)"
+            )
     for name, o in report.get("validation", {}).items():
         lines.append(f"validation {name}: nrmse {o['nrmse']}")
     lines.append(f"{report['evaluations']} simulations, {report['wall_s']:.1f} s wall")

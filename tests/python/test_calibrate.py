@@ -254,3 +254,15 @@ def test_short_recording_warns():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         cal.prepare(_frame(), ["cylinder.mass"], set_values=POSITION)
+
+
+def test_autocorrelated_residuals_widen_the_intervals():
+    """White residuals leave s2 as it is (within their sampling error), AR(1) ones of
+    lag-1 correlation 0.8 scale it by about (1 + 0.8) / (1 - 0.8) = 9, anti-correlated
+    ones never narrow it."""
+    import bench_recording
+
+    e = np.random.default_rng(0).standard_normal(20000)
+    assert cal.autocorrelation_inflation(e) == pytest.approx(1.0, abs=0.05)
+    assert cal.autocorrelation_inflation(bench_recording.coloured(e, 0.8)) == pytest.approx(9.0, rel=0.1)
+    assert cal.autocorrelation_inflation(np.diff(e)) == 1.0
