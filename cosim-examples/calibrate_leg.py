@@ -191,7 +191,8 @@ def fit(rec: Recording, max_iters: int = 30):
     fn, sequences = residual_fn(rec, rec.spec.compile())
     # scipy's trust-region backend: sysid's own "mujoco" backend stops after no iteration
     # as given and, with x_scale, short of the truth in the valley between the two (beta
-    # 3 % high, F_coulomb a third low); this one converges in 7 evaluations. x_scale: the values differ by eight orders of magnitude;
+    # 3 % high, F_coulomb a third low); this one converges in 7 evaluations. x_scale: the
+    # values differ by eight orders of magnitude;
     # diff_step 1e-3: a relative step well above the plugin's solver tolerance (rtol 1e-7),
     # so that the finite-difference Jacobian is not its noise.
     x_scale = np.array([START[k] for k in TRUE])
