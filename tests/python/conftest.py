@@ -45,3 +45,15 @@ def cached_run(version, driver, i_step, *, h, t_stop, outputs=ehsv.DEFAULT_OUTPU
 @pytest.fixture(scope="session")
 def run():
     return cached_run
+
+
+@pytest.fixture(scope="module")
+def mujoco_plugin():
+    """The ehsv.actuator MuJoCo plugin, loaded once per module; fails (not skips) where the
+    library was not built, with the command that builds it."""
+    from ehsv import mjplugin
+
+    missing = mjplugin.plugin_missing()
+    if missing:
+        pytest.fail(missing, pytrace=False)
+    return mjplugin.load_plugin()

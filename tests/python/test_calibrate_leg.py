@@ -23,13 +23,8 @@ if not hasattr(pytest.importorskip("mujoco.sysid"), "optimize"):
 calibrate_leg = pytest.importorskip("calibrate_leg", reason="cosim-examples is not on the path")
 from ehsv import sysid as ehsv_sysid  # noqa: E402 (after the skips)
 
-
-@pytest.fixture(scope="module", autouse=True)
-def plugin():
-    missing = mjplugin.plugin_missing()
-    if missing:
-        pytest.fail(missing, pytrace=False)
-    return mjplugin.load_plugin()
+# the plugin, loaded once for every test here (conftest.py)
+pytestmark = pytest.mark.usefixtures("mujoco_plugin")
 
 
 def _p_a_after(spec, steps=200) -> float:

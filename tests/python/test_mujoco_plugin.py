@@ -31,12 +31,8 @@ quadruped = pytest.importorskip("quadruped", reason="cosim-examples is not on th
 FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
-@pytest.fixture(scope="module", autouse=True)
-def plugin():
-    missing = mjplugin.plugin_missing()
-    if missing:
-        pytest.fail(missing, pytrace=False)
-    return mjplugin.load_plugin()
+# the plugin, loaded once for every test here (conftest.py)
+pytestmark = pytest.mark.usefixtures("mujoco_plugin")
 
 
 def _state(model, data) -> np.ndarray:
