@@ -20,7 +20,7 @@ use crate::physics::{
 };
 use crate::variables::{
     inputs, params, start_values, vr, write_calculated, write_outputs, Causality, Coded,
-    Variability, Variable, N_VARIABLES, SET_RULES, VALVE_RATED_CURRENT, VARIABLES,
+    Variability, Variable, N_VARIABLES, SET_RULES, VARIABLES,
 };
 
 /// The communication step of the default experiment (modelDescription.xml), for which
@@ -639,7 +639,7 @@ impl Model {
                 "i_ref = {} A is above the valve's rated current {} A: the linear valve model \
                  is extrapolated (the command is in A: 5 mA is 0.005)",
                 readable(v[vr::I_REF]),
-                readable(VALVE_RATED_CURRENT)
+                readable(v[vr::VALVE_I_RATED])
             ),
             InputWarning::NoDriverSupply => {
                 unconnected("V_supply", "V", "the driver has no supply and cannot drive the coil")
@@ -665,7 +665,9 @@ impl WarningSuspects {
     #[inline]
     fn of(v: &[f64; N_VARIABLES]) -> WarningSuspects {
         WarningSuspects {
-            current_above_rating: v[vr::I_REF].abs() > VALVE_RATED_CURRENT,
+            // valve.i_rated: a datasheet valve's, and in gains form the Moog 30's (a figure
+            // that form does not read stays at its start value, initialisation checks it).
+            current_above_rating: v[vr::I_REF].abs() > v[vr::VALVE_I_RATED],
             no_driver_supply: v[vr::V_SUPPLY] == 0.0,
             no_hydraulic_supply: v[vr::P_SUPPLY] == 0.0,
         }

@@ -112,3 +112,22 @@ fn an_underlap_leaks_its_null_leakage_from_the_supply() {
         assert!((m.get(p).unwrap() - 0.5 * p_s).abs() < 1e-6 * p_s);
     }
 }
+
+/// The warning for a current command above the valve's rating reads the valve's own rated
+/// current: a datasheet valve rated at 40 mA takes 20 mA without one and warns at 50 mA;
+/// the paper's valve (gains form) warns above its 10 mA.
+#[test]
+fn the_current_warning_follows_the_valves_rated_current() {
+    use ehsv_actuator::model::InputWarning;
+    let above = InputWarning::ALL.iter().position(|w| *w == InputWarning::CurrentAboveRating);
+    let warns = |m: &Model| m.input_warnings()[above.expect("a warning of its own")];
+    let form = ("valve.parameterization", enum_value("ValveParameterization", "datasheet"));
+    let mut m = model(&[form, ("valve.i_rated", 0.04), ("valve.Q_rated", 1e-4)]);
+    m.set(vr::I_REF, 0.02).unwrap();
+    assert!(!warns(&m));
+    m.set(vr::I_REF, 0.05).unwrap();
+    assert!(warns(&m));
+    let mut paper = model(&[]);
+    paper.set(vr::I_REF, 0.02).unwrap();
+    assert!(warns(&paper));
+}
