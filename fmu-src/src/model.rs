@@ -15,8 +15,8 @@ use crate::units::readable;
 use crate::contract::{communication_point_tolerance, ModelContract};
 use crate::physics::bytes::{frame, unframe, ByteReader};
 use crate::physics::{
-    valve_figures, ControlMode, CylinderLoadParams, DriverKind, Inputs, Params, Physics,
-    StepEvents, Work, RATE_PROBE,
+    ControlMode, CylinderLoadParams, DriverKind, Inputs, Params, Physics, StepEvents, Work,
+    RATE_PROBE,
 };
 use crate::variables::{
     inputs, params, start_values, vr, write_calculated, write_outputs, Causality, Coded,
@@ -115,7 +115,7 @@ impl Model {
         let mut state =
             State { values, physics, rod_acceleration: 0.0, stale: false, laws_due: false };
         state.write_outputs();
-        state.write_valve_figures(&start_params()).expect("the start values describe a valve");
+        state.write_valve_figures();
         Model { time: 0.0, initialized: false, state: RefCell::new(state) }
     }
 
@@ -258,11 +258,12 @@ impl Model {
             return;
         }
         state.stale = false;
-        let Ok(p) = params(&state.values) else { return };
-        if let Ok(physics) = Physics::start(&p, &state.inputs(), self.time) {
+        let built =
+            params(&state.values).and_then(|p| Physics::start(&p, &state.inputs(), self.time));
+        if let Ok(physics) = built {
             state.physics = physics;
             state.write_outputs();
-            let _ = state.write_valve_figures(&p);
+            state.write_valve_figures();
         }
     }
 
@@ -276,7 +277,7 @@ impl Model {
         state.physics = Physics::start(&p, &inputs, self.time)?;
         state.physics.prepare_first_step(&inputs, self.time, DEFAULT_STEP_SIZE);
         state.write_outputs();
-        state.write_valve_figures(&p)?;
+        state.write_valve_figures();
         state.stale = false;
         self.initialized = true;
         Ok(())
@@ -763,9 +764,8 @@ impl State {
 
     /// Writes what the valve's gains amount to into the calculated parameters (worked out
     /// once, at initialisation: they change with fixed parameters only).
-    fn write_valve_figures(&mut self, params: &Params) -> Result<(), String> {
-        write_calculated(&valve_figures(&params.valve)?, &mut self.values);
-        Ok(())
+    fn write_valve_figures(&mut self) {
+        write_calculated(&self.physics.valve_figures(), &mut self.values);
     }
 
     /// Writes the physics' outputs into their value references.

@@ -36,8 +36,7 @@ mod state;
 
 pub use components::rod_port::RATE_PROBE;
 pub use components::valve_datasheet::{
-    figures as valve_figures, ValveFigures, DATASHEET_HZ, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ,
-    MAX_LAP,
+    ValveFigures, DATASHEET_HZ, MAX_AMPLIFIER_GAIN, MAX_FIRST_STAGE_HZ, MAX_LAP,
 };
 pub use events::{StepEvents, Work};
 pub use params::{
@@ -91,6 +90,12 @@ impl Physics {
     /// computing the other outputs.
     pub fn rod_force_mean(&self) -> f64 {
         self.rod_force_mean
+    }
+
+    /// What the valve's gains in use amount to, in a datasheet's terms (its gains as
+    /// resolved when the physics was built).
+    pub fn valve_figures(&self) -> ValveFigures {
+        components::valve_datasheet::figures(&self.actuator.params.valve)
     }
 
     /// The outputs at the current state.

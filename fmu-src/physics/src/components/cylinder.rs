@@ -53,7 +53,7 @@
 //!
 
 use crate::components::cylinder_terms::{
-    at_least, chamber_terms, free_volumes, net_force, port_flows, relief_flow,
+    chamber_terms, free_volumes, net_force, port_flows, relief_flow, supply_flow,
 };
 use crate::numerics::root_finding::newton_in_bracket;
 use crate::params::{Outputs, RodPort};
@@ -151,9 +151,7 @@ pub(crate) fn write_outputs(
     write_state_outputs(params, state, out);
     let flows = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
     (out.q_a, out.q_b) = (flows.q_a, flows.q_b);
-    let pressures =
-        [at_least(state.p_a, params.p_cavitation), at_least(state.p_b, params.p_cavitation)];
-    out.q_supply = params.ports.supply_flow(x_s, pressures, p_supply, params.p_tank);
+    out.q_supply = supply_flow(params, [state.p_a, state.p_b], x_s, p_supply);
 }
 
 /// Writes the hydraulic side's outputs that are read off the state (not the port flows).

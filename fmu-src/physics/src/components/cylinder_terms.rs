@@ -66,6 +66,20 @@ pub(crate) fn port_flows(
     flows
 }
 
+/// The flow drawn from the supply (the P -> A and P -> B edges and the pilot) at chamber
+/// pressures `p_a`, `p_b` for spool position `x_s`, the pressures read as [`port_flows`]
+/// reads them.
+pub(crate) fn supply_flow(
+    params: &CylinderParams,
+    [p_a, p_b]: [f64; 2],
+    x_s: f64,
+    p_supply: f64,
+) -> f64 {
+    let floor = params.p_cavitation;
+    let at_floor = [at_least(p_a, floor), at_least(p_b, floor)];
+    params.ports.supply_flow(x_s, at_floor, p_supply, params.p_tank)
+}
+
 /// Flow through a chamber's relief valve to tank at chamber pressure `p` (m3/s), and its
 /// slope `dQ/dp`: zero up to the cracking pressure, quadratic over the override, then
 /// linear with the slope matched (C1).

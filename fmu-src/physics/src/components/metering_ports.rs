@@ -88,9 +88,9 @@ impl MeteringPorts {
 
     #[inline(never)]
     fn lapped_edge_crossing(&self, [s0, s1]: [f64; 2]) -> Option<f64> {
-        let width = self.lap.abs();
-        [-width, width]
+        self.kinks()
             .into_iter()
+            .flatten()
             .filter(|&level| (s0 - level) * (s1 - level) < 0.0)
             .map(|level| (level - s0) / (s1 - s0))
             .filter(|&f| f > 0.0 && f < 1.0)

@@ -211,13 +211,6 @@ impl SpoolPath {
         (c[1] + s * (2.0 * c[2] + s * (3.0 * c[3] + s * (4.0 * c[4] + s * 5.0 * c[5])))) / self.h
     }
 
-    /// Where the spool passes null inside `(0, h)`, if its ends lie on opposite sides
-    /// ([`SpoolPath::level_crossing`] at 0).
-    #[cfg(test)]
-    pub(crate) fn null_crossing(&self) -> Option<f64> {
-        self.level_crossing(0.0)
-    }
-
     /// Where the spool passes `level` inside `(0, h)`, if its ends lie on opposite sides:
     /// safeguarded Newton on the path, to rounding. The time returned is the first one
     /// found on the far side's port law ([`super::metering_ports`] reads a kink's level as
@@ -274,15 +267,15 @@ mod tests {
         let path = SpoolPath::new(h, x(0.0), x(h));
         let root = (-b + (b * b - 4.0 * a * c).sqrt()) / (2.0 * c);
         assert!(root > 0.0 && root < h);
-        let found = path.null_crossing().expect("the ends lie on opposite sides");
+        let found = path.level_crossing(0.0).expect("the ends lie on opposite sides");
         assert!((found - root).abs() < 1e-12 * h, "{found} vs {root}");
         // The piece after the split starts on the far side's law: P -> A rising (x_s >= 0),
         // P -> B falling (x_s < 0).
         assert!(path.position(found) >= 0.0);
         let falling = SpoolPath::new(h, x(0.0).map(|v| -v), x(h).map(|v| -v));
-        assert!(falling.position(falling.null_crossing().expect("crosses")) < 0.0);
+        assert!(falling.position(falling.level_crossing(0.0).expect("crosses")) < 0.0);
         // Ends on the same side (or one end at null): nothing to split.
-        assert_eq!(SpoolPath::new(h, x(0.0), x(0.5 * root)).null_crossing(), None);
-        assert_eq!(SpoolPath::new(h, [0.0, b, 0.0], x(h)).null_crossing(), None);
+        assert_eq!(SpoolPath::new(h, x(0.0), x(0.5 * root)).level_crossing(0.0), None);
+        assert_eq!(SpoolPath::new(h, [0.0, b, 0.0], x(h)).level_crossing(0.0), None);
     }
 }

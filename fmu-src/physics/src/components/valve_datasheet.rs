@@ -73,15 +73,14 @@ pub(crate) fn resolve(v: &ValveParams) -> Result<ValveParams, String> {
     }
 }
 
-/// The figures of the valve `v` describes (resolved first).
-pub fn figures(v: &ValveParams) -> Result<ValveFigures, String> {
-    let v = resolve(v)?;
+/// The figures of a valve whose gains are in place ([`resolve`]d).
+pub(crate) fn figures(v: &ValveParams) -> ValveFigures {
     let tau = v.spool_area * v.kf / (v.kw * v.k2);
     let wn = 2.0 * PI * v.f_n;
     let w90 = (wn / (2.0 * v.zeta * tau)).sqrt();
     let p_ref = v.datasheet.p_leak_ref;
     let lap_leak = lap_leakage_per_metre(v.k3, p_ref, v.dp_rated) * v.lap.max(0.0);
-    Ok(ValveFigures {
+    ValveFigures {
         k1: v.k1,
         kw: v.kw,
         k2: v.k2,
@@ -94,7 +93,7 @@ pub fn figures(v: &ValveParams) -> Result<ValveFigures, String> {
         q_leak_null: lap_leak + v.q_pilot,
         q_pilot: v.q_pilot,
         pressure_gain: if v.lap > 0.0 { 2.0 * p_ref * v.k1 / (v.kw * v.lap) } else { 0.0 },
-    })
+    }
 }
 
 /// In gains form the datasheet's own figures are not read: one set to anything but its
