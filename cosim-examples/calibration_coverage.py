@@ -30,9 +30,10 @@ NOISE, OFFSETS, DELAYS = 0.005, {"p_A": 2e4}, {"x_piston": 3e-4}
 TRUTH = {**bench_recording.DEFAULT_TRUTH, "offset:p_A": 2e4, "delay:x_piston": 3e-4}
 
 
-def fit_seed(seed: int, address: str, starts: int, duration: float, rho: float = 0.0) -> dict:
-    """One seed's recording fitted; the truth's z and inside flag per quantity, the
-    residuals' lag-1 autocorrelation per output."""
+def fit_seed(seed: int, *, duration: float = 0.2, rho: float = 0.0, **solve) -> dict:
+    """One seed's recording fitted (``solve``: calibrate's starts, scheduler or serial);
+    the truth's z and inside flag per quantity, the residuals' lag-1 autocorrelation per
+    output."""
     df = bench_recording.recording(
         bench_recording.DEFAULT_TRUTH,
         duration=duration,
@@ -47,9 +48,8 @@ def fit_seed(seed: int, address: str, starts: int, duration: float, rho: float =
         list(TRUTH),
         bounds={"delay:x_piston": "0:0.002"},
         set_values={"control_mode": "position"},
-        starts=starts,
-        scheduler=address,
         progress=False,
+        **solve,
     )
     params = fit.report["parameters"]
     rows = {name: _row(params[name], truth) for name, truth in TRUTH.items()}
@@ -119,7 +119,8 @@ def main(argv=None) -> int:
     results = []
     with LocalCluster(n_workers=a.workers, threads_per_worker=1, dashboard_address=":0") as lc:
         for seed in range(a.first, a.first + a.seeds):
-            results.append(fit_seed(seed, lc.scheduler_address, a.starts, a.duration, a.noise_corr))
+            solve = {"starts": a.starts, "scheduler": lc.scheduler_address}
+            results.append(fit_seed(seed, duration=a.duration, rho=a.noise_corr, **solve))
             inside = [k for k, v in results[-1]["quantities"].items() if not v["inside"]]
             print(f"seed {seed}: truth outside for {inside or 'none'}", flush=True)
     print(summarize(results))

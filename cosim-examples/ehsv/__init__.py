@@ -51,6 +51,7 @@ from .contract import (
     OUTPUTS,
     PWM_DRIVERS,
     SOLVER_METHODS,
+    enumeration_value,
     flow_gain,
     interface,
     method_params,

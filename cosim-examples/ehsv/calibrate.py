@@ -139,16 +139,12 @@ def read_recording(data, version: str = "fmi2") -> Recording:
 def _number(name: str, text, var):
     """A --set value: an enumeration by item name or number, a Boolean, a number."""
     if var.type == "Enumeration":
-        from .contract import ENUMERATIONS
+        from .contract import enumeration_value
 
-        items = ENUMERATIONS[name]
-        if str(text) in items:
-            return items[str(text)]
-        if str(text).lstrip("-").isdigit() and int(text) in items.values():
-            return int(text)
-        raise CalibrationError(
-            f"--set {name}={text}: not one of {', '.join(f'{k} ({v})' for k, v in items.items())}"
-        )
+        try:
+            return enumeration_value(name, text)
+        except ValueError as e:
+            raise CalibrationError(f"--set {name}={text}: {e}") from None
     if var.type == "Boolean":
         if str(text).lower() in ("1", "true", "0", "false"):
             return str(text).lower() in ("1", "true")

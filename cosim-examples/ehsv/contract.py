@@ -6,7 +6,8 @@ is asked for, so importing the package does not need a built FMU:
 
 * ``DRIVERS``, ``CONTROL_MODES`` and ``SOLVER_METHODS``: the enumerations, name -> integer
   value; ``ENUMERATIONS``: every enumeration variable's items the same way (variable name
-  -> {item name -> value}, e.g. ``ENUMERATIONS["valve.parameterization"]["datasheet"]``),
+  -> {item name -> value}, e.g. ``ENUMERATIONS["valve.parameterization"]["datasheet"]``;
+  ``enumeration_value(name, item)`` takes an item by name or number),
 * ``INPUTS``: name -> (unit, start), ``OUTPUTS``: name -> unit (None for a Boolean),
 * ``NOMINAL``: every parameter's default (start) value in SI units (float, int or bool),
 * ``flow_gain()``: the valve's static gain Q_valve / i_coil = K3 K1 / Kw, m3/s per A.
@@ -100,6 +101,20 @@ INPUTS: Mapping[str, tuple[str | None, float]] = _FromArchive("inputs")
 OUTPUTS: Mapping[str, str | None] = _FromArchive("outputs")
 NOMINAL: Mapping[str, float | int | bool] = _FromArchive("parameters")
 ENUMERATIONS: Mapping[str, dict[str, int]] = _FromArchive("enumerations")
+
+
+def enumeration_value(name: str, item) -> int:
+    """The value of enumeration variable ``name``'s item, given by its item name or its
+    number (as the plugin's config takes them); a ValueError listing the items otherwise."""
+    items = ENUMERATIONS.get(name)
+    if items is None:
+        raise ValueError("not an enumeration")
+    text = str(item).strip()
+    if text in items:
+        return items[text]
+    if text.lstrip("-").isdigit() and int(text) in items.values():
+        return int(text)
+    raise ValueError(f"not one of {', '.join(f'{k} ({v})' for k, v in items.items())}")
 
 
 def parameters(overrides: Mapping | None = None) -> dict:

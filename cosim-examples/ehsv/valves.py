@@ -37,7 +37,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from . import frequency as fr
-from .contract import DRIVERS, ENUMERATIONS, NOMINAL
+from .contract import DRIVERS, NOMINAL, enumeration_value
 from .fmu import model_description, pooled_instance
 from .paths import require_fmu
 
@@ -101,11 +101,10 @@ def start_values(name: str, path: Path | None = None) -> dict[str, float | int]:
         if var not in NOMINAL:
             raise ValueError(f"valves.{name}: {var!r} is not a parameter of the FMU")
         if isinstance(value, str):
-            items = ENUMERATIONS.get(var)
-            if items is None or value not in items:
-                known = ", ".join(items) if items else "none: not an enumeration"
-                raise ValueError(f"valves.{name}: {var} = {value!r} is not one of its items ({known})")
-            value = items[value]
+            try:
+                value = enumeration_value(var, value)
+            except ValueError as e:
+                raise ValueError(f"valves.{name}: {var} = {value!r}: {e}") from None
         out[var] = value
     return out
 
@@ -342,7 +341,7 @@ def measure_null(spec: Mapping) -> dict:
     params = valve_params(spec)
     sheet = datasheet(params)
     d = derived(version, params)
-    held = {k: ENUMERATIONS[k][v] if isinstance(v, str) else v for k, v in HELD_ROD.items()}
+    held = {k: enumeration_value(k, v) if isinstance(v, str) else v for k, v in HELD_ROD.items()}
     values = {**params, **held, "driver": DRIVERS["ideal_current"]}
     p = sheet.p_leak_ref
     inputs = {"x_rod": 0.0, "v_rod": 0.0, "i_ref": 0.0, "p_supply": p}

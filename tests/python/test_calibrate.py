@@ -134,29 +134,10 @@ def test_noisy_truth_inside_the_intervals():
     """0.5 % noise, an offset on p_A and a delay on x_piston, the default four starts:
     the truth inside each 95 % interval in at least 4 of 5 seeds (docs/calibration.md
     gives all 20 seeds)."""
-    import bench_recording
+    import calibration_coverage as coverage
 
-    truth = {**bench_recording.DEFAULT_TRUTH, "offset:p_A": 2e4, "delay:x_piston": 3e-4}
-    hits = dict.fromkeys(truth, 0)
-    for seed in range(5):
-        df = bench_recording.recording(
-            bench_recording.DEFAULT_TRUTH,
-            noise=0.005,
-            offsets={"p_A": 2e4},
-            delays={"x_piston": 3e-4},
-            seed=seed,
-        )
-        fit = cal.calibrate(
-            df,
-            list(truth),
-            bounds={"delay:x_piston": "0:0.002"},
-            set_values={"control_mode": "position"},
-            serial=True,
-            progress=False,
-        )
-        for name, value in truth.items():
-            lo, hi = fit.report["parameters"][name]["ci95"]
-            hits[name] += lo <= value <= hi
+    results = [coverage.fit_seed(seed, serial=True) for seed in range(5)]
+    hits = {name: sum(r["quantities"][name]["inside"] for r in results) for name in coverage.TRUTH}
     assert all(n >= 4 for n in hits.values()), hits
 
 
