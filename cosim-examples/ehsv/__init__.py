@@ -8,7 +8,7 @@ in tests/python share, one module for each concern.
   flow-loop comparison,
 * ``measures``: settling time, time on a rail, PWM-period means, volume balance,
 * ``bands``: the paper's figures and the bands the FMU must land in,
-* ``reference``: numpy reference models (exact linear valve, cylinder RK4),
+* ``reference``: numpy reference models (exact linear valve, cylinder through solve_ivp),
 * ``report``: the tables printed by the examples, ``plotting``: figures to files,
   ``paper_plots``: the paper's figures redrawn from FMU runs,
 * ``frequency``: frequency responses through the FMU and the analytic ones (eq. 3/eq. 4),

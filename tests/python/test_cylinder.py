@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.integrate
 
 import ehsv
 
@@ -200,10 +201,11 @@ def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact)
     * penetration: the damped spring-mass x'' + 2 zeta w x' + w^2 x = F/m from x' = v_impact
       (F the hydraulic force at impact) within 1 % (measured 0.09 %);
     * penetration and peak over-pressure: an independent integration of the same equations
-      (ehsv.cylinder_reference: plain RK4 at 0.25 us, from the FMU's state 1 ms before the
-      impact, spool settled) within 0.1 %. The reference is order 1-2 across the contact
-      kink; its own spread between 0.25, 0.125 and 0.0625 us steps is 1.3e-4 (measured
-      FMU - reference: 2e-6 of the over-pressure, 1e-6 of the penetration)."""
+      (ehsv.cylinder_reference: scipy's solve_ivp, DOP853 at rtol 1e-12, from the FMU's
+      state 1 ms before the impact, spool settled) within 0.1 %. The reference's own
+      error: its figures at rtol 1e-10 and 1e-12 agree within 1e-5 (1 % of the tolerance;
+      measured 2e-9 and 1e-9 across the contact's jump of the acceleration; FMU -
+      reference 1.2e-7 of the penetration, 5e-8 of the over-pressure)."""
     r = fast_impact
     x, v, p_a = r["x_piston"], r["v_piston"], r["p_A"]
     i = int(np.argmax(x > HALF))
@@ -232,9 +234,18 @@ def test_fast_impact_rebounds_and_lifts_p_A_above_supply_documented(fast_impact)
     assert abs(r["x_spool"][-1] - r["x_spool"][k0]) < 1e-6 * abs(r["x_spool"][k0]), (
         "spool settled (the reference holds it constant)"
     )
-    ref = ehsv.cylinder_reference(y0, r["x_spool"][k0], h=1e-5, n=n, substeps=40)
+    ref = ehsv.cylinder_reference(y0, r["x_spool"][k0], h=1e-5, n=n, rtol=1e-12)
+    loose = ehsv.cylinder_reference(y0, r["x_spool"][k0], h=1e-5, n=n, rtol=1e-10)
     ref_pen = float(ref[:, 2].max() - HALF)
     ref_dp = float(ref[:, 0].max() - P_S)
+    spread_pen = abs(float(loose[:, 2].max() - HALF) - ref_pen) / ref_pen
+    spread_dp = abs(float(loose[:, 0].max() - P_S) - ref_dp) / ref_dp
+    print(
+        f"FMU - reference: penetration {(penetration - ref_pen) / ref_pen:.1e}, over-pressure "
+        f"{(overpressure - ref_dp) / ref_dp:.1e}; reference rtol 1e-10 vs 1e-12: "
+        f"{spread_pen:.1e}, {spread_dp:.1e}"
+    )
+    assert spread_pen < 1e-5 and spread_dp < 1e-5, "the reference is converged"
     window = slice(k0, k0 + n + 1)
     assert float(p_a[window].max() - P_S) == overpressure, "the peak lies in the compared window"
     assert penetration == pytest.approx(ref_pen, rel=1e-3), f"{facts}; reference {ref_pen * 1e3:.5f} mm"
@@ -331,40 +342,60 @@ def _reversal(version, params, logging_on=False):
 
 
 def _spool(run):
-    """x_s(t) from the FMU's samples: the cubic through the four nearest (error ~1e-9 of
-    the spool's travel at 10 us samples: its fastest time scale is the 0.2 ms first stage)."""
-    t, xs, h = run["time"], run["x_spool"], REVERSAL_H
+    """x_s(t) from the FMU's samples, piece by piece: ``piece(j)`` is the cubic through the
+    four samples nearest the interval [t_j, t_j+1] (j-1 .. j+2; error ~1e-9 of the spool's
+    travel at 10 us samples: its fastest time scale is the 0.2 ms first stage). Neighbouring
+    pieces meet at the samples with different slopes: x_s(t) has a kink at every sample."""
+    xs, h = run["x_spool"], REVERSAL_H
 
-    def x_s(tau):
-        k = min(max(int(tau / h) - 1, 0), len(t) - 4)
-        s = tau / h - k
+    def piece(j):
+        k = min(max(j - 1, 0), len(xs) - 4)
         y = xs[k : k + 4]
-        return (
-            -y[0] * (s - 1) * (s - 2) * (s - 3) / 6
-            + y[1] * s * (s - 2) * (s - 3) / 2
-            - y[2] * s * (s - 1) * (s - 3) / 2
-            + y[3] * s * (s - 1) * (s - 2) / 6
-        )
 
-    return x_s
+        def x_s(tau):
+            s = tau / h - k
+            return (
+                -y[0] * (s - 1) * (s - 2) * (s - 3) / 6
+                + y[1] * s * (s - 2) * (s - 3) / 2
+                - y[2] * s * (s - 1) * (s - 3) / 2
+                + y[3] * s * (s - 1) * (s - 2) / 6
+            )
+
+        return x_s
+
+    return piece
 
 
-def _rk4(y0, x_s, t0, t1, dt):
-    """Classical RK4 of ehsv.cylinder_derivatives (the equations written again in Python)
-    with the spool following x_s(t): states at every output sample of [t0, t1]."""
+def _reference(y0, run, j0, j1, rtol):
+    """ehsv.cylinder_derivatives (the equations written again in Python) with the spool
+    following the recorded path, integrated by scipy's solve_ivp (DOP853, explicit order 8,
+    adaptive; absolute tolerances rtol times p_S, the stroke and 1 m/s): the states at the
+    samples j0 .. j1 (rows).
+
+    One solve_ivp per sample interval, because of the kinks of x_s(t) at the samples: a
+    step across one meets a jump in the slope of the right-hand side, where an order-8
+    method is no longer order 8 and its error estimate no longer measures its error (one
+    call over the whole window, t_eval at the samples, lands 4e-9 from this result, ten
+    times the 3e-10 between this one's rtol 1e-10 and 1e-12 runs; Radau, interval by
+    interval, agrees with it within 2e-11). Started at each sample, every step lies on one
+    cubic, and the interval ends are the output samples (no t_eval needed)."""
+    piece = _spool(run)
+    t = run["time"]
+    atol = rtol * np.array([P_S, P_S, CYL.stroke, 1.0])
     y = np.array(y0, float)
-    f = lambda t, z: np.array(ehsv.cylinder_derivatives(z, x_s(t), P_S, 0.0))  # noqa: E731
-    per = round(REVERSAL_H / dt)
     out = [y]
-    t = t0
-    for _ in range(round((t1 - t0) / REVERSAL_H)):
-        for _ in range(per):
-            k1 = f(t, y)
-            k2 = f(t + dt / 2, y + dt / 2 * k1)
-            k3 = f(t + dt / 2, y + dt / 2 * k2)
-            k4 = f(t + dt, y + dt * k3)
-            y = y + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            t += dt
+    for j in range(j0, j1):
+        x_s = piece(j)
+        sol = scipy.integrate.solve_ivp(
+            lambda tau, z, x_s=x_s: ehsv.cylinder_derivatives(z, x_s(tau), P_S, 0.0),
+            (t[j], t[j + 1]),
+            y,
+            method="DOP853",
+            rtol=rtol,
+            atol=atol,
+        )
+        assert sol.success, sol.message
+        y = sol.y[:, -1]
         out.append(y)
     return np.array(out)
 
@@ -373,13 +404,14 @@ def test_reversal_without_relief_peaks_as_an_independent_integration_says(versio
     """DOCUMENTATION of what the relief valves are for: with them removed
     (relief.p_crack = 0) the reversal drives p_B to several times p_S in mid-stroke.
 
-    The peak is pinned against an independent integration: classical RK4 at 0.25 us of
-    the cylinder equations as written again in Python (ehsv.cylinder_derivatives, which
-    has no relief term), from the FMU's state at the reversal, with the spool following
-    the FMU's recorded x_spool. Independent of the FMU's numerics (explicit fixed-step
-    RK4 against adaptive Rodas4 with an analytic Jacobian) and of its Rust code for the
-    equations; only the spool path is shared. RK4's own spread between 0.5 and 0.25 us
-    steps is checked to be far below the tolerance."""
+    The peak is pinned against an independent integration: scipy's solve_ivp (DOP853 at
+    rtol 1e-12, one call per sample interval: _reference) of the cylinder equations as
+    written again in Python (ehsv.cylinder_derivatives, which has no relief term), from
+    the FMU's state at the reversal, with the spool following the FMU's recorded x_spool.
+    Independent of the FMU's numerics (explicit order-8 Runge-Kutta against Rodas4 with
+    an analytic Jacobian) and of its Rust code for the equations; only the spool path is
+    shared. The reference's own error, the difference between rtol 1e-10 and 1e-12, is
+    checked to be far below the tolerance."""
     r = _reversal(version, {"relief.p_crack": 0.0})
     k0 = round(REVERSAL_AT / REVERSAL_H)
     window = slice(k0, k0 + round(5e-3 / REVERSAL_H) + 1)
@@ -394,20 +426,22 @@ def test_reversal_without_relief_peaks_as_an_independent_integration_says(versio
     assert abs(r["x_piston"][window]).max() < HALF - 10e-3, "mid-stroke: " + facts
     assert peak > 2 * P_S, facts
     y0 = [r[name][k0] for name in STATE]
-    x_s = _spool(r)
-    t0, t1 = r["time"][window][0], r["time"][window][-1]
-    fine = _rk4(y0, x_s, t0, t1, 0.25e-6)
-    coarse = _rk4(y0, x_s, t0, t1, 0.5e-6)
-    ref = float(fine[:, 1].max())
-    spread = abs(float(coarse[:, 1].max()) - ref) / ref
+    j1 = k0 + len(p_b) - 1
+    tight = _reference(y0, r, k0, j1, rtol=1e-12)
+    loose = _reference(y0, r, k0, j1, rtol=1e-10)
+    ref = float(tight[:, 1].max())
+    spread = abs(float(loose[:, 1].max()) - ref) / ref
+    trace = float(np.max(np.abs(p_b - tight[:, 1])))
     print(
-        f"reference peak {ref * 1e-6:.4f} MPa, FMU - reference {(peak - ref) / ref:.1e}, "
-        f"RK4 spread {spread:.1e}"
+        f"reference peak {ref * 1e-6:.4f} MPa, FMU - reference {(peak - ref) / ref:.1e} "
+        f"(along p_B {trace / ref:.1e}), reference rtol 1e-10 vs 1e-12 {spread:.1e}"
     )
-    # RK4's spread 1.9e-8, the FMU (Rodas4 at rtol 1e-7) 5.0e-8 from it (measured)
-    assert spread < 1e-7
+    # measured: the reference's rtol pair 3e-10 apart (with steps capped at 2.5 us it moves
+    # by 1e-12; Radau agrees within 2e-11), the FMU (Rodas4 at rtol 1e-7) 2e-9 from it at
+    # the peak and 1.9e-8 along p_B
+    assert spread < 1e-8
     assert peak == pytest.approx(ref, rel=1e-6), facts
-    assert np.max(np.abs(r["p_B"][window] - fine[:, 1])) < 1e-6 * ref
+    assert trace < 1e-6 * ref
 
 
 def test_reversal_with_relief_stays_within_crack_plus_override_and_logs_it(version):
