@@ -29,9 +29,8 @@ DEFAULT_TRUTH = {"cylinder.beta": 8e8, "cylinder.mass": 7.0, "cylinder.F_coulomb
 OUTPUTS = ("x_piston", "p_A", "p_B")
 
 
-def levels(t: np.ndarray, seed: int) -> np.ndarray:
+def levels(t: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """x_ref: 0 for the first 10 ms, then random levels held 20-60 ms."""
-    rng = np.random.default_rng(seed)
     x_ref = np.zeros_like(t)
     t0 = 0.01
     while t0 < t[-1]:
@@ -56,9 +55,11 @@ def recording(
 ):
     """The recording as a DataFrame (time, x_ref, x_piston, p_A, p_B)."""
     t = np.arange(int(round(duration * rate)) + 1) / rate
-    df = pd.DataFrame({"time": t, "x_ref": levels(t, seed), **{n: np.zeros_like(t) for n in OUTPUTS}})
+    # levels and noise from two independent streams of the one seed (generators seeded
+    # seed and seed + 1 would draw a recording's noise from the bits of the next one's levels)
+    levels_rng, rng = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(2))
+    df = pd.DataFrame({"time": t, "x_ref": levels(t, levels_rng), **{n: np.zeros_like(t) for n in OUTPUTS}})
     y = cal.simulate("fmi2", {"control_mode": 2, **truth}, cal.read_recording(df))
-    rng = np.random.default_rng(seed + 1)
     for name in OUTPUTS:
         v = np.interp(t - (delays or {}).get(name, 0.0), t, y[name]) + (offsets or {}).get(name, 0.0)
         df[name] = v + noise * np.ptp(y[name]) * coloured(rng.standard_normal(len(t)), noise_corr)

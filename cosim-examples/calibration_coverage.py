@@ -4,14 +4,17 @@ x_piston, the hidden parameters of bench_recording.DEFAULT_TRUTH), each fitted a
 docs/calibration.md says, on one dask LocalCluster.
 
     .venv/bin/python cosim-examples/calibration_coverage.py [--seeds 20] [--first 0] [--workers 2]
-        [--starts 4] [--duration 0.2] [--noise-corr RHO] [--white] [--json out/coverage.json]
+        [--starts 4] [--duration 0.2] [--noise-corr RHO] [--white] [--no-refine]
+        [--json out/coverage.json]
 
-Prints, per fitted quantity, the seeds whose interval holds the truth and the spread of
-the standardized errors z = (value - truth) / sd (sd: the interval's half-width over the
-t quantile; an honest interval has z of spread 1), and per output the residuals' lag-1
-autocorrelation at the optimum (white residuals: about 0). ``--noise-corr`` colours the
-noise (bench_recording.coloured); ``--white`` computes the intervals without
-``calibrate.autocorrelation_inflation``, as before it.
+Prints, per fitted quantity (and per block of 20 seeds where more are run), the seeds
+whose interval holds the truth and the spread of the standardized errors
+z = (value - truth) / sd (sd: the interval's half-width over the t quantile; an honest
+interval has z of spread 1), per output the residuals' lag-1 autocorrelation at the
+optimum (white residuals: about 0), and the seeds whose fit needed refinement rounds.
+``--noise-corr`` colours the noise (bench_recording.coloured); ``--white`` computes the
+intervals without ``calibrate.autocorrelation_inflation``; ``--no-refine`` fits without
+calibrate's refinement rounds.
 """
 
 from __future__ import annotations
@@ -27,13 +30,15 @@ import bench_recording
 from ehsv import calibrate as cal
 
 NOISE, OFFSETS, DELAYS = 0.005, {"p_A": 2e4}, {"x_piston": 3e-4}
+#: coverage is also counted per block of this many seeds (at least 18 of 20 is asked)
+BLOCK = 20
 TRUTH = {**bench_recording.DEFAULT_TRUTH, "offset:p_A": 2e4, "delay:x_piston": 3e-4}
 
 
 def fit_seed(seed: int, *, duration: float = 0.2, rho: float = 0.0, **solve) -> dict:
     """One seed's recording fitted (``solve``: calibrate's starts, scheduler or serial);
     the truth's z and inside flag per quantity, the residuals' lag-1 autocorrelation per
-    output."""
+    output, the refinement rounds run and whether the best start came from one."""
     df = bench_recording.recording(
         bench_recording.DEFAULT_TRUTH,
         duration=duration,
@@ -53,7 +58,15 @@ def fit_seed(seed: int, *, duration: float = 0.2, rho: float = 0.0, **solve) -> 
     )
     params = fit.report["parameters"]
     rows = {name: _row(params[name], truth) for name, truth in TRUTH.items()}
-    return {"seed": seed, "quantities": rows, "lag1": _lag1(fit)}
+    starts = fit.report["starts"]
+    best = min(starts, key=lambda st: st["cost"])
+    return {
+        "seed": seed,
+        "quantities": rows,
+        "lag1": _lag1(fit),
+        "refine_rounds": max((st.get("refine", 0) for st in starts), default=0),
+        "best_from_refine": "refine" in best,
+    }
 
 
 def _row(p: dict, truth: float) -> dict:
@@ -72,12 +85,7 @@ def _row(p: dict, truth: float) -> dict:
 def _lag1(fit) -> dict:
     problem = fit.problem
     model = problem.model([fit.report["parameters"][u.name]["value"] for u in problem.unknowns])
-    out = {}
-    for name, y in problem.rec.outputs.items():
-        r = model[name] - y
-        r = r - r.mean()
-        out[name] = float(r[1:] @ r[:-1] / (r @ r))
-    return out
+    return {name: cal.lag1_correlation(model[name] - y) for name, y in problem.rec.outputs.items()}
 
 
 def summarize(results: list[dict]) -> str:
@@ -89,6 +97,18 @@ def summarize(results: list[dict]) -> str:
         lines.append(
             f"{name:<20} {hits:>4}/{n:<3} {z.mean():>8.2f} {z.std(ddof=1):>6.2f} {np.abs(z).max():>8.2f}"
         )
+    if n > BLOCK:
+        lines.append(f"per block of {BLOCK} seeds, the seeds whose interval holds the truth:")
+        for first in range(0, n - BLOCK + 1, BLOCK):
+            block = results[first : first + BLOCK]
+            counts = [sum(r["quantities"][name]["inside"] for r in block) for name in TRUTH]
+            lines.append(f"  seeds {block[0]['seed']}-{block[-1]['seed']}: " + " ".join(map(str, counts)))
+    refined = [r["seed"] for r in results if r["refine_rounds"]]
+    rescued = [r["seed"] for r in results if r["best_from_refine"]]
+    lines.append(
+        f"refinement rounds ran for seeds {refined or 'none'}; "
+        f"the best start came from one for {rescued or 'none'}"
+    )
     lag = {k: np.mean([r["lag1"][k] for r in results]) for k in results[0]["lag1"]}
     lines.append(
         "residual lag-1 autocorrelation (mean): " + ", ".join(f"{k} {v:+.3f}" for k, v in lag.items())
@@ -109,12 +129,19 @@ def main(argv=None) -> int:
         action="store_true",
         help="intervals as if the residuals were white (without autocorrelation_inflation)",
     )
+    ap.add_argument(
+        "--no-refine",
+        action="store_true",
+        help="without calibrate's refinement rounds (a fit a basin off stays there)",
+    )
     ap.add_argument("--json", type=Path, help="write the per-seed results here")
     a = ap.parse_args(argv)
     from dask.distributed import LocalCluster
 
     if a.white:  # the intervals are computed in this process, after the starts
         cal.autocorrelation_inflation = lambda r: 1.0
+    if a.no_refine:
+        cal.REFINE_ROUNDS = 0
 
     results = []
     with LocalCluster(n_workers=a.workers, threads_per_worker=1, dashboard_address=":0") as lc:
@@ -122,7 +149,9 @@ def main(argv=None) -> int:
             solve = {"starts": a.starts, "scheduler": lc.scheduler_address}
             results.append(fit_seed(seed, duration=a.duration, rho=a.noise_corr, **solve))
             inside = [k for k, v in results[-1]["quantities"].items() if not v["inside"]]
-            print(f"seed {seed}: truth outside for {inside or 'none'}", flush=True)
+            rounds = results[-1]["refine_rounds"]
+            refine = f", {rounds} refinement rounds" if rounds else ""
+            print(f"seed {seed}: truth outside for {inside or 'none'}{refine}", flush=True)
     print(summarize(results))
     if a.json:
         a.json.parent.mkdir(parents=True, exist_ok=True)

@@ -174,10 +174,8 @@ def cylinder_reference(
     -6.4 on the real axis) allows steps of ~45 us against the model's fastest eigenvalue
     (docs/model.md: -1.4e5 1/s); the tolerance, not stability, sets its steps. The end
     stop's contact force k d + c d' starts at c v, a jump of the acceleration that the
-    step control meets by rejecting steps until it is passed (on test_cylinder's fast
-    impact, stopping at the contact and restarting there moves the result by 2e-10 of
-    p_supply, Radau lands within 8e-11); compare two rtol (say 1e-10 and 1e-12) to see the
-    result converged."""
+    step control meets by rejecting steps until it is passed; compare two rtol (say 1e-10
+    and 1e-12) to see the result converged."""
     if p_supply is None:
         p_supply = INPUTS["p_supply"][1]
     cyl = Cylinder.from_params(params)

@@ -141,6 +141,24 @@ def test_noisy_truth_inside_the_intervals():
     assert all(n >= 4 for n in hits.values()), hits
 
 
+def test_a_fit_one_basin_off_is_refined_to_the_truth(monkeypatch):
+    """Seed 21 of calibration_coverage: all four starts settle where the friction ends the
+    oil column's ringing a cycle early (Coulomb friction far outside its interval, the
+    pressure residuals strongly autocorrelated); the refinement rounds around that start
+    reach the truth's basin, with white residuals and the truth inside every interval."""
+    import calibration_coverage as coverage
+
+    monkeypatch.setattr(cal, "REFINE_ROUNDS", 0)
+    trapped = coverage.fit_seed(21, serial=True)
+    assert not trapped["quantities"]["cylinder.F_coulomb"]["inside"], trapped["quantities"]
+    assert trapped["lag1"]["p_A"] > 0.5, trapped["lag1"]
+    monkeypatch.undo()
+    refined = coverage.fit_seed(21, serial=True)
+    assert refined["best_from_refine"]
+    assert all(q["inside"] for q in refined["quantities"].values()), refined["quantities"]
+    assert all(abs(rho) < 0.1 for rho in refined["lag1"].values()), refined["lag1"]
+
+
 def test_gain_pair_flagged_not_identifiable():
     """In gains form the valve's static gain is K3 K1 / Kw; Kw alone also sets the spool
     loop's time constant (about 1.2 ms), which a 10 Hz position sine with 0.5 % noise
