@@ -84,23 +84,21 @@ pub(crate) fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) ->
 pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Result<(), String> {
     let (volume_a, volume_b) = free_volumes(params, state.x);
     let min_volume = params.min_volume();
-    for (volume, chamber, end) in [(volume_a, "A", "-"), (volume_b, "B", "+")] {
-        // A NaN position is refused too.
-        if volume.is_nan() || volume < min_volume {
-            return Err(through_the_stop(params, state.x, (volume, chamber, end)));
-        }
+    // A NaN position fails both comparisons: refused too.
+    if volume_a >= min_volume && volume_b >= min_volume {
+        return Ok(());
     }
-    Ok(())
+    Err(through_the_stop(params, state.x))
 }
 
-/// [`check_inside`]'s message. Cold and out of line: the check runs on every step.
+/// [`check_inside`]'s message, naming the chamber (A first, as for a NaN position). Cold
+/// and out of line: the check runs on every step, two comparisons.
 #[cold]
 #[inline(never)]
-fn through_the_stop(
-    params: &CylinderParams,
-    x: f64,
-    (volume, chamber, end): (f64, &str, &str),
-) -> String {
+fn through_the_stop(params: &CylinderParams, x: f64) -> String {
+    let (volume_a, volume_b) = free_volumes(params, x);
+    let (volume, chamber, end) =
+        if volume_a >= params.min_volume() { (volume_b, "B", "+") } else { (volume_a, "A", "-") };
     format!(
         "x_piston = {} m is through the {end}stroke/2 end stop into chamber {chamber}'s dead \
          volume (chamber volume {} m3, cylinder.V_dead = {} m3): the end stop \
