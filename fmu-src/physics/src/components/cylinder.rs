@@ -55,6 +55,7 @@
 use crate::components::cylinder_terms::{
     chamber_terms, free_volumes, net_force, port_flows, relief_flow, supply_flow,
 };
+use crate::components::metering_ports::{AnyLap, PortLaw};
 use crate::numerics::root_finding::newton_in_bracket;
 use crate::params::{Outputs, RodPort};
 use crate::readable::readable;
@@ -114,15 +115,15 @@ pub(crate) fn relief_open(params: &CylinderParams, state: &CylinderState) -> [bo
     [state.p_a, state.p_b].map(|p| relief_flow(params, p).0 > 0.0)
 }
 
-/// `[p_A', p_B', x', v']` for spool position `x_s`.
-pub(crate) fn derivatives(
+/// `[p_A', p_B', x', v']` for spool position `x_s`, the ports by the law `L`.
+pub(crate) fn derivatives<L: PortLaw>(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,
     p_supply: f64,
     load: f64,
 ) -> [f64; 4] {
-    let [a, b] = chamber_terms(params, state, x_s, p_supply);
+    let [a, b] = chamber_terms::<L>(params, state, x_s, p_supply);
     let [dp_a, dp_b] = [a.pressure_rate, b.pressure_rate];
     [dp_a, dp_b, state.v, acceleration(params, state, load)]
 }
@@ -147,7 +148,7 @@ pub(crate) fn write_outputs(
     out: &mut Outputs,
 ) {
     write_state_outputs(params, state, out);
-    let flows = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
+    let flows = port_flows::<AnyLap>(params, [state.p_a, state.p_b], x_s, p_supply);
     (out.q_a, out.q_b) = (flows.q_a, flows.q_b);
     out.q_supply = supply_flow(params, [state.p_a, state.p_b], x_s, p_supply);
 }
@@ -170,6 +171,8 @@ pub(crate) fn write_state_outputs(
 /// linearisation). Switches: `x` reaching `+-stroke/2` from outside the stop (the contact
 /// force jumps in by `c |v|`), and inside a stop the contact force `k d + c d'` crossing zero
 /// (separation or re-engagement: a kink). Leaving a stop is smooth (the force is already 0).
+/// Inlined in each law's copy of the cylinder's integrator.
+#[inline(always)]
 pub(crate) fn next_contact_switch(
     params: &CylinderParams,
     y: &Vec4,
