@@ -28,7 +28,7 @@ use crate::components::cylinder_jacobian::{
 use crate::components::cylinder_terms::{
     at_least, chamber_volumes, endstop_force, friction, relief_flow,
 };
-use crate::components::metering_ports::{AnyLap, Centred, PortLaw};
+use crate::components::metering_ports::PortLaw;
 use crate::held_inputs::HeldInputs;
 use crate::params::RodPort;
 
@@ -38,8 +38,9 @@ use crate::params::RodPort;
 pub(crate) const GAMMA: f64 = 0.5;
 
 /// Advances the actuator's cylinder by `h`, the spool moving from `spool[0]` to `spool[1]`
-/// (positions, m) on a straight line.
-pub(crate) fn step(
+/// (positions, m) on a straight line, the ports by the law `L`.
+#[inline(always)]
+pub(crate) fn step<L: PortLaw>(
     actuator: &mut Actuator,
     spool: [f64; 2],
     h: f64,
@@ -47,13 +48,7 @@ pub(crate) fn step(
 ) -> Result<(), String> {
     let params = &actuator.params.cylinder;
     let y0 = actuator.cylinder.state.to_array();
-    let loads = (inputs.p_supply, inputs.load);
-    // The ports' law chosen here, once per internal step (see `PortLaw`).
-    let (y1, steps) = if params.ports.centred() {
-        advance::<Centred>(params, &y0, spool, h, loads)
-    } else {
-        lapped_advance(params, &y0, spool, h, loads)
-    };
+    let (y1, steps) = advance::<L>(params, &y0, spool, h, (inputs.p_supply, inputs.load));
     if !y1.iter().all(|v| v.is_finite()) {
         return Err("the cylinder's state is not finite; step refused".into());
     }
@@ -63,20 +58,6 @@ pub(crate) fn step(
     actuator.work.jacobians += steps;
     actuator.work.factorisations += steps;
     Ok(())
-}
-
-/// [`advance`] of lapped ports, out of line: the internal step that the critically centred
-/// ports' step is inlined into stays as small as it was without the lap.
-#[cold]
-#[inline(never)]
-fn lapped_advance(
-    params: &CylinderParams,
-    y0: &Vec4,
-    spool: [f64; 2],
-    h: f64,
-    loads: (f64, f64),
-) -> (Vec4, u64) {
-    advance::<AnyLap>(params, y0, spool, h, loads)
 }
 
 /// The state after one internal step of `h` from `y0` (see the module documentation): one
