@@ -112,7 +112,8 @@ fn advance_once<L: PortLaw>(
     let (contact, first_switch) = match params.port {
         RodPort::Force => {
             let contact = contact_switch(params, (y0, contact0), &y1);
-            (contact, earliest(earliest(contact, pressure_switch(params, y0, &y1)), edge))
+            let pressure = pressure_switch(params, y0, &y1);
+            (contact, contact.into_iter().chain(pressure).chain(edge).reduce(f64::min))
         }
         RodPort::Motion => (None, edge),
     };
@@ -252,9 +253,10 @@ fn pressure_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64>
     earliest(crossing(PA), crossing(PB))
 }
 
-/// The earlier of two switches inside a step (fractions of it), either possibly absent.
-/// Written out rather than reduced over an iterator: each law's copy of the step calls it,
-/// and a generic reduction shared by both copies would be left out of line.
+/// The earlier of two chambers' switches inside a step (fractions of it), either possibly
+/// absent. Written out rather than reduced over a filtered iterator: [`pressure_switch`] is
+/// inlined in each law's copy of the step, and that reduction, shared by both copies, was
+/// left out of line.
 #[inline(always)]
 fn earliest(a: Option<f64>, b: Option<f64>) -> Option<f64> {
     match (a, b) {
