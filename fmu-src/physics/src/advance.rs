@@ -147,8 +147,8 @@ fn through_time_events(
     events: &mut StepEvents,
 ) -> Result<(), String> {
     let StepTimes { t_start, t_end, step, slack, .. } = *times;
-    // The coefficients borrowed where they are read, not copied: a copy of them all per
-    // step costs more than the loop's own work.
+    // The coefficients borrowed where they are read, not copied: the loop reads a few of
+    // them, and a copy is a memcpy of the whole struct on every step.
     let p = &a.params;
     let time_events =
         a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);

@@ -74,9 +74,8 @@ impl MeteringPorts {
         MeteringPorts { lap, pilot_per_root: q_pilot / p_ref.sqrt(), ..self }
     }
 
-    /// Whether the ports are critically centred, their lap +0: the test by which the
-    /// integrators choose [`Centred`] (by its bits, one integer comparison; a lap of -0 is
-    /// left to [`AnyLap`], which reads it as 0).
+    /// Whether the ports are critically centred, their lap +0, by its bits: one integer
+    /// comparison (a lap of -0 is left to [`AnyLap`], which reads it as 0).
     #[inline(always)]
     pub(crate) fn centred(&self) -> bool {
         self.lap.to_bits() == 0
@@ -232,9 +231,10 @@ impl MeteringPorts {
 }
 
 /// The ports' law as a caller is compiled for it: [`Centred`] where the lap is known to be
-/// 0, [`AnyLap`] elsewhere. The integrators choose once per step of the cylinder: a test of
-/// the lap where the law is evaluated, several times per step with the lapped law inlined
-/// beside the centred one, made the critically centred ports' steps dearer.
+/// 0, [`AnyLap`] elsewhere. The integrators choose once, above their hot loops (the
+/// fixed-cost method per segment, the exact one per call of the cylinder's integrator): a
+/// test of the lap where the law is evaluated, several times per step with the lapped law
+/// inlined beside the centred one, made the critically centred ports' steps dearer.
 pub(crate) trait PortLaw {
     /// [`MeteringPorts::flows`].
     fn flows(ports: &MeteringPorts, x_s: f64, p: [f64; 2], p_supply: f64, p_tank: f64)
