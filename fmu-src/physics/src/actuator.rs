@@ -13,6 +13,7 @@ use crate::components::driver;
 use crate::components::driver::Mode;
 use crate::components::driver::MODES;
 use crate::components::hbridge::HBridgeState;
+use crate::components::metering_ports::AnyLap;
 use crate::components::outer_loop::OuterLoop;
 use crate::components::rod_port;
 use crate::components::valve;
@@ -350,7 +351,7 @@ impl Actuator {
         let held = HeldInputs::new(&self.params, inputs);
         let state = &self.cylinder.state;
         let c = &self.params.cylinder;
-        let dy = cylinder::derivatives(c, state, self.z[XS], held.p_supply, held.load);
+        let dy = cylinder::derivatives::<AnyLap>(c, state, self.z[XS], held.p_supply, held.load);
         let z = self.z + dz * span;
         let mut y = state.to_array();
         for (y, d) in y.iter_mut().zip(dy) {

@@ -147,7 +147,9 @@ fn through_time_events(
     events: &mut StepEvents,
 ) -> Result<(), String> {
     let StepTimes { t_start, t_end, step, slack, .. } = *times;
-    let p = a.params;
+    // The coefficients borrowed where they are read, not copied: the loop reads a few of
+    // them, and a copy is a memcpy of the whole struct on every step.
+    let p = &a.params;
     let time_events =
         a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);
     if time_events > MAX_TIME_EVENTS_PER_STEP {
@@ -155,6 +157,7 @@ fn through_time_events(
     }
     let mut t = t_start;
     loop {
+        let p = &a.params;
         let t_bridge = a.hbridge.next_event(&p.hbridge);
         let t_loop = a.outer.next_event(&p.loops);
         let t_event = t_bridge.min(t_loop);
@@ -169,10 +172,11 @@ fn through_time_events(
         if !fire {
             return Ok(());
         }
+        let p = &a.params;
         if t_loop <= t_bridge {
             // The outer loop samples first, so a bridge sample at the same instant sees its command.
             let measured = match p.loops.mode {
-                ControlMode::Flow => valve::no_load_flow(&p, a.z[XS]),
+                ControlMode::Flow => valve::no_load_flow(p, a.z[XS]),
                 _ => a.cylinder.state.x,
             };
             a.outer.sample(&p.loops, inputs.reference, measured);

@@ -19,6 +19,7 @@ use crate::components::coefficients::Coefficients;
 use crate::components::cylinder::{self, CylinderState};
 use crate::components::driver::Mode;
 use crate::components::hbridge::HBridgeState;
+use crate::components::metering_ports::AnyLap;
 use crate::components::outer_loop::OuterLoop;
 use crate::components::{coil, valve};
 use crate::numerics::augmented_state::{self, Mat, Vector};
@@ -145,7 +146,8 @@ impl WholeModel {
             dy[U] = 0.0;
         }
         let cyl = CylinderState { p_a: y[PA], p_b: y[PB], x: y[X], v: y[V] };
-        let d = cylinder::derivatives(&c.cylinder, &cyl, y[XS], held.p_supply, held.f_ext);
+        let d =
+            cylinder::derivatives::<AnyLap>(&c.cylinder, &cyl, y[XS], held.p_supply, held.f_ext);
         dy[PA..].copy_from_slice(&d);
     }
 

@@ -55,6 +55,7 @@
 use crate::components::cylinder_terms::{
     chamber_terms, free_volumes, net_force, port_flows, relief_flow, supply_flow,
 };
+use crate::components::metering_ports::{AnyLap, PortLaw};
 use crate::numerics::root_finding::newton_in_bracket;
 use crate::params::{Outputs, RodPort};
 use crate::readable::readable;
@@ -84,23 +85,21 @@ pub(crate) fn equilibrium(params: &CylinderParams, p_supply: f64, f_ext: f64) ->
 pub(crate) fn check_inside(params: &CylinderParams, state: &CylinderState) -> Result<(), String> {
     let (volume_a, volume_b) = free_volumes(params, state.x);
     let min_volume = params.min_volume();
-    for (volume, chamber, end) in [(volume_a, "A", "-"), (volume_b, "B", "+")] {
-        // A NaN position is refused too.
-        if volume.is_nan() || volume < min_volume {
-            return Err(through_the_stop(params, state.x, (volume, chamber, end)));
-        }
+    // A NaN position fails both comparisons: refused too.
+    if volume_a >= min_volume && volume_b >= min_volume {
+        return Ok(());
     }
-    Ok(())
+    Err(through_the_stop(params, state.x))
 }
 
-/// [`check_inside`]'s message. Cold and out of line: the check runs on every step.
+/// [`check_inside`]'s message, naming the chamber (A first, as for a NaN position). Cold
+/// and out of line: the check runs on every step, two comparisons.
 #[cold]
 #[inline(never)]
-fn through_the_stop(
-    params: &CylinderParams,
-    x: f64,
-    (volume, chamber, end): (f64, &str, &str),
-) -> String {
+fn through_the_stop(params: &CylinderParams, x: f64) -> String {
+    let (volume_a, volume_b) = free_volumes(params, x);
+    let (volume, chamber, end) =
+        if volume_a >= params.min_volume() { (volume_b, "B", "+") } else { (volume_a, "A", "-") };
     format!(
         "x_piston = {} m is through the {end}stroke/2 end stop into chamber {chamber}'s dead \
          volume (chamber volume {} m3, cylinder.V_dead = {} m3): the end stop \
@@ -116,15 +115,15 @@ pub(crate) fn relief_open(params: &CylinderParams, state: &CylinderState) -> [bo
     [state.p_a, state.p_b].map(|p| relief_flow(params, p).0 > 0.0)
 }
 
-/// `[p_A', p_B', x', v']` for spool position `x_s`.
-pub(crate) fn derivatives(
+/// `[p_A', p_B', x', v']` for spool position `x_s`, the ports by the law `L`.
+pub(crate) fn derivatives<L: PortLaw>(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,
     p_supply: f64,
     load: f64,
 ) -> [f64; 4] {
-    let [a, b] = chamber_terms(params, state, x_s, p_supply);
+    let [a, b] = chamber_terms::<L>(params, state, x_s, p_supply);
     let [dp_a, dp_b] = [a.pressure_rate, b.pressure_rate];
     [dp_a, dp_b, state.v, acceleration(params, state, load)]
 }
@@ -149,7 +148,7 @@ pub(crate) fn write_outputs(
     out: &mut Outputs,
 ) {
     write_state_outputs(params, state, out);
-    let flows = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
+    let flows = port_flows::<AnyLap>(params, [state.p_a, state.p_b], x_s, p_supply);
     (out.q_a, out.q_b) = (flows.q_a, flows.q_b);
     out.q_supply = supply_flow(params, [state.p_a, state.p_b], x_s, p_supply);
 }
@@ -172,6 +171,8 @@ pub(crate) fn write_state_outputs(
 /// linearisation). Switches: `x` reaching `+-stroke/2` from outside the stop (the contact
 /// force jumps in by `c |v|`), and inside a stop the contact force `k d + c d'` crossing zero
 /// (separation or re-engagement: a kink). Leaving a stop is smooth (the force is already 0).
+/// Inlined in each law's copy of the cylinder's integrator.
+#[inline(always)]
 pub(crate) fn next_contact_switch(
     params: &CylinderParams,
     y: &Vec4,

@@ -9,6 +9,7 @@ use crate::components::cylinder_terms::{
     at_least, cavitation_factor, chamber_a, chamber_b, chamber_volumes, friction, friction_force,
     net_force_with, port_flows, Chamber,
 };
+use crate::components::metering_ports::PortLaw;
 use crate::params::RodPort;
 
 /// The model linearised at a state, in the shape of its Jacobian: `x' = v` makes the row
@@ -41,7 +42,8 @@ impl Linearisation {
 /// The model linearised at a state: `f`, the analytic Jacobian `df/dy` from the terms'
 /// slopes, and the sensitivity `df/dx_s` (the only time dependence: `df/dt = df/dx_s x_s'`).
 /// Where a term's law has a kink, its slope is taken as [`super::cylinder_terms`] says.
-pub(crate) fn linearise(
+/// The ports by the law `L`.
+pub(crate) fn linearise<L: PortLaw>(
     params: &CylinderParams,
     y: &Vec4,
     x_s: f64,
@@ -49,7 +51,7 @@ pub(crate) fn linearise(
     load: f64,
 ) -> (Vec4, Mat4, Vec4) {
     let motion = motion_row(params, y, load, friction(params, y[V]));
-    let l = linearisation(params, y, x_s, p_supply, &motion);
+    let l = linearisation::<L>(params, y, x_s, p_supply, &motion);
     let jac = [l.d_pa, l.d_pb, [0.0, 0.0, 0.0, 1.0], l.d_v];
     (l.rates, jac, [l.d_xs[0], l.d_xs[1], 0.0, 0.0])
 }
@@ -60,7 +62,7 @@ pub(crate) fn linearise(
 /// first, while few values are live. Inlined: the fixed-cost step keeps its rows where they
 /// are computed.
 #[inline(always)]
-pub(crate) fn linearisation(
+pub(crate) fn linearisation<L: PortLaw>(
     params: &CylinderParams,
     y: &Vec4,
     x_s: f64,
@@ -68,7 +70,7 @@ pub(crate) fn linearisation(
     motion: &MotionRow,
 ) -> Linearisation {
     let state = CylinderState::from_array(y);
-    let chambers = pressure_rows(params, &state, x_s, p_supply);
+    let chambers = pressure_rows::<L>(params, &state, x_s, p_supply);
     Linearisation {
         rates: [chambers.rates[0], chambers.rates[1], state.v, motion.acceleration],
         d_pa: chambers.d_pa,
@@ -90,14 +92,14 @@ struct PressureRows {
 /// the spool position, from the chambers' terms ([`chamber_a`], [`chamber_b`]). Chamber A's
 /// row is finished before B's terms are computed: fewer values are live at once.
 #[inline(always)]
-fn pressure_rows(
+fn pressure_rows<L: PortLaw>(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,
     p_supply: f64,
 ) -> PressureRows {
     let [volume_a, volume_b] = chamber_volumes(params, state.x);
-    let ports = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
+    let ports = port_flows::<L>(params, [state.p_a, state.p_b], x_s, p_supply);
     // d inflow_a / d(p_a, p_b, x, v) = (dqa_dpa - c_leak - c_ext - drelief_a, c_leak, 0, -A_A)
     let a = chamber_a(params, state, volume_a, &ports);
     let ([own_a, other_a, x_a, v_a], xs_a) =
@@ -206,7 +208,7 @@ pub(crate) fn secant_friction(params: &CylinderParams, v: f64, h: f64, motion: &
 /// the tangent at the step's start, and the port's flow, steep there, changed its sign. The
 /// spool is taken where it is at the step's start. Only above the cavitation band, where the
 /// chamber's stiffness is `beta / V` alone; elsewhere the tangent stays.
-pub(crate) fn secant_ports(
+pub(crate) fn secant_ports<L: PortLaw>(
     params: &CylinderParams,
     (y, x_s): (&Vec4, f64),
     p_supply: f64,
@@ -233,7 +235,7 @@ pub(crate) fn secant_ports(
         return;
     }
     let (start, end) =
-        (port_flows(params, p0, x_s, p_supply), port_flows(params, p1, x_s, p_supply));
+        (port_flows::<L>(params, p0, x_s, p_supply), port_flows::<L>(params, p1, x_s, p_supply));
     let volumes = chamber_volumes(params, y[X]);
     // Chamber A's inflow is Q_A and B's is -Q_B: the slopes of each in its own pressure,
     // tangent and secant, are negative where they damp.
@@ -265,7 +267,8 @@ const STEEP_APPROACH: f64 = 0.25;
 /// tangent ran its stages far below the floor (2e5 Pa on the 20 Hz squares, lifted back by
 /// the floor's clamp), and the rod's force with them (the step was 4e-6 m/s off in the
 /// velocity). With the secant the undershoot is 1e4 Pa at most. Elsewhere the tangent stays,
-/// and with it the method's order.
+/// and with it the method's order. Inlined in each law's copy of the fixed-cost step.
+#[inline(always)]
 pub(crate) fn secant_cavitation(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisation) {
     let top = params.cavitation_band_top();
     for k in [PA, PB] {

@@ -12,7 +12,7 @@
 //! side without contact.
 
 use crate::components::cylinder_params::{CylinderParams, CylinderState, STRIBECK_TAIL};
-use crate::components::metering_ports::PortFlows;
+use crate::components::metering_ports::{PortFlows, PortLaw};
 
 /// Chamber volumes `(V_A, V_B)` at position `x`, before the clamp (m3).
 pub(crate) fn free_volumes(params: &CylinderParams, x: f64) -> (f64, f64) {
@@ -52,7 +52,7 @@ pub(crate) fn at_least(x: f64, floor: f64) -> f64 {
 /// position `x_s`, with their slopes. A pressure below the cavitation floor (rounding only)
 /// is read at the floor, where the flow has no slope in it.
 #[inline(always)]
-pub(crate) fn port_flows(
+pub(crate) fn port_flows<L: PortLaw>(
     params: &CylinderParams,
     [p_a, p_b]: [f64; 2],
     x_s: f64,
@@ -60,7 +60,7 @@ pub(crate) fn port_flows(
 ) -> PortFlows {
     let floor = params.p_cavitation;
     let at_floor = [at_least(p_a, floor), at_least(p_b, floor)];
-    let mut flows = params.ports.flows(x_s, at_floor, p_supply, params.p_tank);
+    let mut flows = L::flows(&params.ports, x_s, at_floor, p_supply, params.p_tank);
     flows.dqa_dpa *= if p_a >= floor { 1.0 } else { 0.0 };
     flows.dqb_dpb *= if p_b >= floor { 1.0 } else { 0.0 };
     flows
@@ -243,14 +243,14 @@ pub(crate) fn net_force_with(
 /// and relief flows make each chamber's net inflow, which its stiffness `beta / V` and
 /// cavitation factor turn into its pressure rate.
 #[inline(always)]
-pub(crate) fn chamber_terms(
+pub(crate) fn chamber_terms<L: PortLaw>(
     params: &CylinderParams,
     state: &CylinderState,
     x_s: f64,
     p_supply: f64,
 ) -> [Chamber; 2] {
     let [volume_a, volume_b] = chamber_volumes(params, state.x);
-    let ports = port_flows(params, [state.p_a, state.p_b], x_s, p_supply);
+    let ports = port_flows::<L>(params, [state.p_a, state.p_b], x_s, p_supply);
     [chamber_a(params, state, volume_a, &ports), chamber_b(params, state, volume_b, &ports)]
 }
 
@@ -319,6 +319,7 @@ fn chamber(params: &CylinderParams, p: f64, volume: (f64, f64), inflow: f64) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::components::metering_ports::AnyLap;
     use crate::params::CylinderLoadParams;
     use std::f64::consts::FRAC_PI_4;
 
@@ -374,7 +375,7 @@ mod tests {
             [p.v_dead + area_a * (x + 0.5 * p.stroke), p.v_dead + area_b * (0.5 * p.stroke - x)];
         for (p_a, p_b, v) in [(5e6, 1e6, 0.0), (1.5e6, 4e6, 0.02), (1e6, 3e5, -0.01)] {
             let s = CylinderState { p_a, p_b, x, v };
-            let terms = chamber_terms(&p, &s, 0.0, P_SUPPLY);
+            let terms = chamber_terms::<AnyLap>(&p, &s, 0.0, P_SUPPLY);
             let internal = p.c_leak * (p_a - p_b);
             let external =
                 [p.c_leak_external * (p_a - p.p_tank), p.c_leak_external * (p_b - p.p_tank)];
@@ -407,8 +408,8 @@ mod tests {
                 at[chamber] = floor;
                 let mut below = at;
                 below[chamber] = floor - 2e4;
-                let f_at = port_flows(&p, at, x_s, P_SUPPLY);
-                let f_below = port_flows(&p, below, x_s, P_SUPPLY);
+                let f_at = port_flows::<AnyLap>(&p, at, x_s, P_SUPPLY);
+                let f_below = port_flows::<AnyLap>(&p, below, x_s, P_SUPPLY);
                 assert_eq!((f_below.q_a, f_below.q_b), (f_at.q_a, f_at.q_b), "{x_s} {chamber}");
                 let mut expected = slopes(&f_at);
                 assert!(expected[chamber] != 0.0, "{x_s} {chamber}");

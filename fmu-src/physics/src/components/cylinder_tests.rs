@@ -1,6 +1,7 @@
 use super::*;
 use crate::components::cylinder_jacobian::linearise;
 use crate::components::cylinder_terms::{friction, port_flows};
+use crate::components::metering_ports::AnyLap;
 use crate::numerics::rosenbrock::tests::simulate;
 use crate::numerics::rosenbrock::{RosenbrockMemory, STATE_SCALE};
 use crate::params::CylinderLoadParams;
@@ -17,13 +18,19 @@ fn jacobian(
     f_ext: f64,
 ) -> nalgebra::Matrix4<f64> {
     let y = state.to_array();
-    let f0 = derivatives(params, state, x_s, p_supply, f_ext);
+    let f0 = derivatives::<AnyLap>(params, state, x_s, p_supply, f_ext);
     let mut jac = nalgebra::Matrix4::zeros();
     for j in 0..4 {
         let delta = 1e-7 * y[j].abs().max(STATE_SCALE[j]);
         let mut shifted = y;
         shifted[j] += delta;
-        let fj = derivatives(params, &CylinderState::from_array(&shifted), x_s, p_supply, f_ext);
+        let fj = derivatives::<AnyLap>(
+            params,
+            &CylinderState::from_array(&shifted),
+            x_s,
+            p_supply,
+            f_ext,
+        );
         for i in 0..4 {
             jac[(i, j)] = (fj[i] - f0[i]) / delta;
         }
@@ -54,7 +61,7 @@ fn equilibrium_start_has_zero_derivatives_and_stays_put() {
         let s0 = equilibrium(&p, P_RATED, f_ext);
         assert!((s0.p_a + s0.p_b - P_RATED).abs() < 1e-6, "{s0:?}");
         assert!(s0.p_a > 0.0 && s0.p_a < P_RATED && s0.p_b > 0.0 && s0.p_b < P_RATED);
-        let d = derivatives(&p, &s0, 0.0, P_RATED, f_ext);
+        let d = derivatives::<AnyLap>(&p, &s0, 0.0, P_RATED, f_ext);
         // Force residual below 1e-12 N equivalent; pressures and position exactly still.
         assert_eq!((d[0], d[1], d[2]), (0.0, 0.0, 0.0));
         assert!(d[3].abs() * p.mass < 1e-12 * stall, "{d:?}");
@@ -90,7 +97,7 @@ fn steady_velocity_equals_port_flow_over_area() {
     let x_s = 0.2e-3;
     simulate(&p, &mut s, &mut memory, &|_| x_s, (P_RATED, 0.0), (0.0, 0.04, 1e-4), |_, _| {});
     assert!(s.x < p.stroke / 2.0);
-    let flows = port_flows(&p, [s.p_a, s.p_b], x_s, P_RATED);
+    let flows = port_flows::<AnyLap>(&p, [s.p_a, s.p_b], x_s, P_RATED);
     let (q_a, q_b) = (flows.q_a, flows.q_b);
     let v_a = q_a / p.area_a();
     let v_b = q_b / p.area_b();
@@ -133,9 +140,9 @@ fn volume_balance_of_chamber_a() {
     let x_s = |t: f64| 0.2e-3 * (1.0 - (-t / 2e-3).exp());
     let volume_a = |s: &CylinderState| p.v_dead + p.area_a() * (s.x + p.stroke / 2.0);
     let (mut inflow, mut compressed) = (0.0, 0.0);
-    let mut prev = (0.0, s0, port_flows(&p, [s0.p_a, s0.p_b], x_s(0.0), P_RATED).q_a);
+    let mut prev = (0.0, s0, port_flows::<AnyLap>(&p, [s0.p_a, s0.p_b], x_s(0.0), P_RATED).q_a);
     simulate(&p, &mut s, &mut memory, &x_s, (P_RATED, 0.0), (0.0, 0.03, 1e-5), |t, s| {
-        let q = port_flows(&p, [s.p_a, s.p_b], x_s(t), P_RATED).q_a;
+        let q = port_flows::<AnyLap>(&p, [s.p_a, s.p_b], x_s(t), P_RATED).q_a;
         inflow += 0.5 * (q + prev.2) * (t - prev.0);
         compressed += 0.5 * (volume_a(s) + volume_a(&prev.1)) / p.beta * (s.p_a - prev.1.p_a);
         prev = (t, *s, q);
@@ -369,10 +376,10 @@ fn analytic_jacobian_matches_finite_differences() {
     for (name, s, x_s, f_ext) in cases {
         let params = if name == "with leakage" { leaky } else { p };
         let y = s.to_array();
-        let (f, jac, f_xs) = linearise(&params, &y, x_s, P_RATED, f_ext);
+        let (f, jac, f_xs) = linearise::<AnyLap>(&params, &y, x_s, P_RATED, f_ext);
         assert_eq!(
             f,
-            derivatives(&params, &s, x_s, P_RATED, f_ext),
+            derivatives::<AnyLap>(&params, &s, x_s, P_RATED, f_ext),
             "{name}: f differs from derivatives()"
         );
         let mut worst: f64 = 0.0;
@@ -381,9 +388,20 @@ fn analytic_jacobian_matches_finite_differences() {
             let (mut up, mut down) = (y, y);
             up[j] += delta;
             down[j] -= delta;
-            let f_up = derivatives(&params, &CylinderState::from_array(&up), x_s, P_RATED, f_ext);
-            let f_down =
-                derivatives(&params, &CylinderState::from_array(&down), x_s, P_RATED, f_ext);
+            let f_up = derivatives::<AnyLap>(
+                &params,
+                &CylinderState::from_array(&up),
+                x_s,
+                P_RATED,
+                f_ext,
+            );
+            let f_down = derivatives::<AnyLap>(
+                &params,
+                &CylinderState::from_array(&down),
+                x_s,
+                P_RATED,
+                f_ext,
+            );
             for i in 0..4 {
                 let fd = (f_up[i] - f_down[i]) / (2.0 * delta) * STATE_SCALE[j] / STATE_SCALE[i];
                 let an = jac[i][j] * STATE_SCALE[j] / STATE_SCALE[i];
@@ -402,8 +420,8 @@ fn analytic_jacobian_matches_finite_differences() {
         }
         let dx = 1e-7 * x_s.abs().max(1e-5);
         let (f_up, f_down) = (
-            derivatives(&params, &s, x_s + dx, P_RATED, f_ext),
-            derivatives(&params, &s, x_s - dx, P_RATED, f_ext),
+            derivatives::<AnyLap>(&params, &s, x_s + dx, P_RATED, f_ext),
+            derivatives::<AnyLap>(&params, &s, x_s - dx, P_RATED, f_ext),
         );
         for i in 0..4 {
             let fd = (f_up[i] - f_down[i]) / (2.0 * dx);
@@ -444,7 +462,7 @@ fn relief_flow_opens_smoothly_to_rated_flow_at_crack_plus_override() {
     // In the equations: a sealed chamber above cracking loses exactly the relief flow.
     let s = CylinderState { p_a: crack + over, ..equilibrium(&p, P_RATED, 0.0) };
     let volume_a = p.v_dead + p.area_a() * p.stroke / 2.0;
-    let d = derivatives(&p, &s, 0.0, P_RATED, 0.0);
+    let d = derivatives::<AnyLap>(&p, &s, 0.0, P_RATED, 0.0);
     assert!((d[PA] + p.beta / volume_a * rated).abs() < 1e-12 * d[PA].abs(), "{d:?}");
 }
 
@@ -543,18 +561,18 @@ fn a_step_into_the_supply_pressure_sees_the_port_by_its_secant() {
     let (h, x_s) = (5e-5, X_S_RATED);
     let motion = motion_row(&params, &y, 0.0, friction(&params, 0.0));
     let at_rate = |rate: f64| {
-        let mut l = linearisation(&params, &y, x_s, P_RATED, &motion);
+        let mut l = linearisation::<AnyLap>(&params, &y, x_s, P_RATED, &motion);
         l.rates[PA] = rate;
         let tangent = l.d_pa[PA];
-        secant_ports(&params, (&y, x_s), P_RATED, h, &mut l);
+        secant_ports::<AnyLap>(&params, (&y, x_s), P_RATED, h, &mut l);
         (tangent, l.d_pa[PA])
     };
     // Through the supply's pressure: 5e5 Pa over the step against a 2e5 Pa drop.
     let (tangent, secant) = at_rate(1e10);
     let p1 = y[PA] + h * 1e10;
     let (q0, q1) = (
-        port_flows(&params, [y[PA], y[PB]], x_s, P_RATED),
-        port_flows(&params, [p1, y[PB]], x_s, P_RATED),
+        port_flows::<AnyLap>(&params, [y[PA], y[PB]], x_s, P_RATED),
+        port_flows::<AnyLap>(&params, [p1, y[PB]], x_s, P_RATED),
     );
     let (volume_a, _) = free_volumes(&params, 0.0);
     let expected =

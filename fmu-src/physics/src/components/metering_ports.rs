@@ -74,6 +74,13 @@ impl MeteringPorts {
         MeteringPorts { lap, pilot_per_root: q_pilot / p_ref.sqrt(), ..self }
     }
 
+    /// Whether the ports are critically centred, their lap +0, by its bits: one integer
+    /// comparison (a lap of -0 is left to [`AnyLap`], which reads it as 0).
+    #[inline(always)]
+    pub(crate) fn centred(&self) -> bool {
+        self.lap.to_bits() == 0
+    }
+
     /// Where a spool moving on a straight line from `spool[0]` to `spool[1]` first reaches
     /// a land's opening (`x_s = -lap` or `x_s = lap`, where the flows' slope in `x_s`
     /// changes), as a fraction of the way in (0, 1). None without a lap: at null the
@@ -149,6 +156,19 @@ impl MeteringPorts {
         if self.lap != 0.0 {
             return self.lapped_flows(x_s, [p_a, p_b], p_supply, p_tank);
         }
+        self.centred_flows(x_s, [p_a, p_b], p_supply, p_tank)
+    }
+
+    /// [`MeteringPorts::flows`] of critically centred ports (lap 0), without the test.
+    #[inline(always)]
+    fn centred_flows(
+        &self,
+        x_s: f64,
+        [p_a, p_b]: [f64; 2],
+        p_supply: f64,
+        p_tank: f64,
+    ) -> PortFlows {
+        debug_assert!(self.lap == 0.0, "the centred law of lapped ports");
         let gain_per_xs = self.gain_per_xs;
         let gain = self.k3 * x_s / self.rated_root;
         let lam = Laminar { dp: self.dp_laminar, root: self.laminar_root };
@@ -207,6 +227,62 @@ impl MeteringPorts {
             dqa_dxs: g * (up_open * pa.0 + down_open * at.0),
             dqb_dxs: g * (up_open * bt.0 + down_open * pb.0),
         }
+    }
+}
+
+/// The ports' law as a caller is compiled for it: [`Centred`] where the lap is known to be
+/// 0, [`AnyLap`] elsewhere. The integrators choose once, above their hot loops (the
+/// fixed-cost method per segment, the exact one per call of the cylinder's integrator): a
+/// test of the lap where the law is evaluated, several times per step with the lapped law
+/// inlined beside the centred one, made the critically centred ports' steps dearer.
+pub(crate) trait PortLaw {
+    /// [`MeteringPorts::flows`].
+    fn flows(ports: &MeteringPorts, x_s: f64, p: [f64; 2], p_supply: f64, p_tank: f64)
+        -> PortFlows;
+    /// [`MeteringPorts::edge_crossing`].
+    fn edge_crossing(ports: &MeteringPorts, spool: [f64; 2]) -> Option<f64>;
+}
+
+/// Critically centred ports (lap 0): their law without a test of the lap.
+pub(crate) struct Centred;
+
+/// Ports with any lap, 0 included: the law the lap asks for.
+pub(crate) struct AnyLap;
+
+impl PortLaw for Centred {
+    #[inline(always)]
+    fn flows(
+        ports: &MeteringPorts,
+        x_s: f64,
+        p: [f64; 2],
+        p_supply: f64,
+        p_tank: f64,
+    ) -> PortFlows {
+        ports.centred_flows(x_s, p, p_supply, p_tank)
+    }
+
+    #[inline(always)]
+    fn edge_crossing(ports: &MeteringPorts, _: [f64; 2]) -> Option<f64> {
+        debug_assert!(ports.lap == 0.0, "the centred law of lapped ports");
+        None
+    }
+}
+
+impl PortLaw for AnyLap {
+    #[inline(always)]
+    fn flows(
+        ports: &MeteringPorts,
+        x_s: f64,
+        p: [f64; 2],
+        p_supply: f64,
+        p_tank: f64,
+    ) -> PortFlows {
+        ports.flows(x_s, p, p_supply, p_tank)
+    }
+
+    #[inline(always)]
+    fn edge_crossing(ports: &MeteringPorts, spool: [f64; 2]) -> Option<f64> {
+        ports.edge_crossing(spool)
     }
 }
 

@@ -7,6 +7,7 @@
 
 use crate::components::cylinder::{self, CylinderState};
 use crate::components::cylinder_terms::{chamber_terms, net_force};
+use crate::components::metering_ports::AnyLap;
 
 /// The span (s) over which [`Physics::outputs_along`](crate::Physics::outputs_along) moves the state: short against every
 /// time constant of the model (the fastest, the oil columns', is ~7 us), long enough that
@@ -23,7 +24,7 @@ pub(crate) fn rod_stiffness(
     x_s: f64,
     p_supply: f64,
 ) -> (f64, f64) {
-    let [a, b] = chamber_terms(params, state, x_s, p_supply);
+    let [a, b] = chamber_terms::<AnyLap>(params, state, x_s, p_supply);
     let [stiff_a, stiff_b] = [a.stiffness, b.stiffness];
     let [(fade_a, _), (fade_b, _)] = [a.cavitation, b.cavitation];
     let (area_a, area_b) = (params.area_a(), params.area_b());

@@ -217,11 +217,20 @@ impl SpoolPath {
     /// the law above it: `x_s = 0` opens P -> A), so the piece that starts there is
     /// linearised on the branch it runs on: the flows are continuous at a kink but their
     /// slope in `x_s` is not.
+    ///
+    /// Inlined, the search out of line: most pieces end on the side they start on.
+    #[inline(always)]
     pub(crate) fn level_crossing(&self, level: f64) -> Option<f64> {
         let (x0, x1) = (self.coef[0] - level, self.end - level);
         if x0 * x1 >= 0.0 {
             return None;
         }
+        self.crossing_between(level, (x0, x1))
+    }
+
+    /// [`SpoolPath::level_crossing`] for ends `x0`, `x1` (from `level`) of opposite signs.
+    #[inline(never)]
+    fn crossing_between(&self, level: f64, (x0, x1): (f64, f64)) -> Option<f64> {
         let rising = x1 > 0.0;
         let (_, t) = newton_in_bracket(
             |t| (self.position(t) - level, self.rate(t)),

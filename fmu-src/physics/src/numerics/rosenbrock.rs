@@ -28,7 +28,10 @@ use crate::components::cylinder::{
     derivatives, next_cavitation_switch, next_contact_switch, CylinderParams, CylinderState, Mat4,
     Vec4, N_STATES, PA, PB,
 };
+use std::marker::PhantomData;
+
 use crate::components::cylinder_jacobian::linearise;
+use crate::components::metering_ports::PortLaw;
 use crate::numerics::lu4::Lu4;
 use crate::readable::readable;
 
@@ -236,7 +239,9 @@ pub(crate) fn advance(
         };
         (value, rate)
     };
-    advance_with_rate(params, state, h, p_supply, load, spool, memory)
+    advance_with_rate::<crate::components::metering_ports::AnyLap>(
+        params, state, h, p_supply, load, spool, memory,
+    )
 }
 
 /// Why [`hydraulics_refusal`] refuses a step of the cylinder's integrator.
@@ -267,9 +272,10 @@ fn hydraulics_refusal(why: Refusal, h: f64, tau: f64) -> String {
         ),
     }
 }
-/// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`.
+/// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`,
+/// the ports by the law `L`.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn advance_with_rate(
+pub(crate) fn advance_with_rate<L: PortLaw>(
     params: &CylinderParams,
     state: &mut CylinderState,
     h: f64,
@@ -285,7 +291,7 @@ pub(crate) fn advance_with_rate(
     if !(h.is_finite() && h > 0.0) {
         return Err(hydraulics_refusal(Refusal::NotFinite, h, 0.0));
     }
-    let model = Rhs { params, p_supply, load, spool: &spool };
+    let model = Rhs::<L, _> { params, p_supply, load, spool: &spool, law: PhantomData };
     let mut call = Call {
         h,
         y: state.to_array(),
@@ -336,7 +342,7 @@ pub(crate) fn advance_with_rate(
                 break;
             }
         }
-        let (y_new, err) = rosenbrock_step::<6, _>(
+        let (y_new, err) = rosenbrock_step::<6, _, _>(
             &RODAS4,
             &model,
             here,
@@ -394,7 +400,8 @@ impl Call {
     /// Where the step from here should end instead of `self.step` (`wanted`: the
     /// controller's size): just short of or on the next end-stop contact switch, or just
     /// past a watched cavitation kink, whichever comes first inside the step (`None`: the
-    /// step stands). Updates the kink's watch.
+    /// step stands). Updates the kink's watch. Inlined in each law's copy of the call.
+    #[inline(always)]
     fn switch_ahead(
         &mut self,
         params: &CylinderParams,
@@ -497,14 +504,14 @@ impl Call {
 
 /// A Rodas3 attempt at the step from `call`'s point: its state (lifted to the cavitation
 /// floor) if its own error estimate passes, else `None` after backing off further attempts.
-fn rodas3_step<F: Fn(f64) -> (f64, f64)>(
-    model: &Rhs<'_, F>,
+fn rodas3_step<L: PortLaw, F: Fn(f64) -> (f64, f64)>(
+    model: &Rhs<'_, L, F>,
     here: &Linearisation,
     call: &Call,
     memory: &mut RosenbrockMemory,
     stats: &mut Stats,
 ) -> Result<Option<Vec4>, String> {
-    let (mut y3, err3) = rosenbrock_step::<4, _>(
+    let (mut y3, err3) = rosenbrock_step::<4, _, _>(
         &RODAS3,
         model,
         here,
@@ -543,18 +550,22 @@ fn clamp_to_floor(params: &CylinderParams, y: &mut Vec4, stats: &mut Stats) {
     }
 }
 
-/// The right-hand side over one call: parameters, inputs and the spool path.
-struct Rhs<'a, S: Fn(f64) -> (f64, f64)> {
+/// The right-hand side over one call: parameters, inputs and the spool path, the ports by
+/// the law `L`.
+struct Rhs<'a, L: PortLaw, S: Fn(f64) -> (f64, f64)> {
     params: &'a CylinderParams,
     p_supply: f64,
     load: f64,
     spool: &'a S,
+    law: PhantomData<L>,
 }
 
-impl<S: Fn(f64) -> (f64, f64)> Rhs<'_, S> {
+impl<L: PortLaw, S: Fn(f64) -> (f64, f64)> Rhs<'_, L, S> {
+    /// `f` at `(tau, y)`. Inlined where the stages are, [`derivatives`] called out of line.
+    #[inline(always)]
     fn f(&self, tau: f64, y: &Vec4, stats: &mut Stats) -> Vec4 {
         stats.function_evaluations += 1;
-        derivatives(
+        derivatives::<L>(
             self.params,
             &CylinderState::from_array(y),
             (self.spool)(tau).0,
@@ -568,7 +579,7 @@ impl<S: Fn(f64) -> (f64, f64)> Rhs<'_, S> {
         stats.function_evaluations += 1;
         stats.jacobian_evaluations += 1;
         let (x_s, rate) = (self.spool)(tau);
-        let (f0, jac, f_xs) = linearise(self.params, y, x_s, self.p_supply, self.load);
+        let (f0, jac, f_xs) = linearise::<L>(self.params, y, x_s, self.p_supply, self.load);
         Linearisation { f0, jac, f_t: f_xs.map(|d| d * rate) }
     }
 }
@@ -585,9 +596,9 @@ struct Linearisation {
 /// coefficients are constants there: the loops unroll and the terms with a zero coefficient
 /// fold away. Every remaining operation is the one of the method's formulas, in the same order.
 #[inline(always)]
-fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
+fn rosenbrock_step<const S: usize, L: PortLaw, F: Fn(f64) -> (f64, f64)>(
     method: &Rosenbrock<S>,
-    model: &Rhs<'_, F>,
+    model: &Rhs<'_, L, F>,
     lin: &Linearisation,
     (tau, y, h): (f64, &Vec4, f64),
     rtol: f64,
@@ -606,7 +617,7 @@ fn rosenbrock_step<const S: usize, F: Fn(f64) -> (f64, f64)>(
     let lu = Lu4::factor(w).ok_or_else(|| "hydraulics: singular iteration matrix".to_string())?;
     let mut st = Stages { k: [[0.0; N_STATES]; S], f: lin.f0, point: *y };
     macro_rules! stages {
-        ($($i:literal)*) => { $( stage::<$i, S, F>(method, model, lin, &lu, (tau, y, h), &mut st, stats); )* };
+        ($($i:literal)*) => { $( stage::<$i, S, L, F>(method, model, lin, &lu, (tau, y, h), &mut st, stats); )* };
     }
     const { assert!(S <= 6, "stages! below unrolls at most 6 stages") };
     stages!(0 1 2 3 4 5);
@@ -655,9 +666,9 @@ struct Stages<const S: usize> {
 /// earlier stages unroll.
 #[inline(always)]
 #[allow(clippy::needless_range_loop)]
-fn stage<const I: usize, const S: usize, F: Fn(f64) -> (f64, f64)>(
+fn stage<const I: usize, const S: usize, L: PortLaw, F: Fn(f64) -> (f64, f64)>(
     method: &Rosenbrock<S>,
-    model: &Rhs<'_, F>,
+    model: &Rhs<'_, L, F>,
     lin: &Linearisation,
     lu: &Lu4,
     (tau, y, h): (f64, &Vec4, f64),

@@ -5,6 +5,7 @@
 use crate::components::cylinder;
 use crate::components::cylinder::CylinderParams;
 use crate::components::cylinder::CylinderState;
+use crate::components::metering_ports::{AnyLap, Centred};
 use crate::components::valve::SpoolPath;
 use crate::events::Work;
 use crate::held_inputs::HeldInputs;
@@ -12,6 +13,7 @@ use crate::numerics::augmented_state::Vector;
 use crate::numerics::augmented_state::XS;
 use crate::numerics::mode_systems::ModeSystem;
 use crate::numerics::rosenbrock;
+use crate::numerics::rosenbrock::advance_with_rate;
 use crate::numerics::rosenbrock::RosenbrockMemory;
 
 /// Pieces this short (events right at a piece start) take an Euler step in the cylinder, s.
@@ -68,7 +70,7 @@ impl DrivenCylinder {
         }
         if h <= TINY_PIECE {
             // Far below every cylinder time constant (|lambda| h < 2e-5): one Euler step.
-            let f = cylinder::derivatives(
+            let f = cylinder::derivatives::<AnyLap>(
                 params,
                 &self.state,
                 0.5 * (z0[XS] + z1[XS]),
@@ -85,25 +87,19 @@ impl DrivenCylinder {
         let path = SpoolPath::new(h, sys.spool_motion(z0), sys.spool_motion(z1));
         // The port laws change sides at null spool (with a lap: at the lands' openings), a
         // kink in the flows that Rodas4 would reject its way across: the piece is split there.
-        let [first, second] =
-            params.ports.kinks().map(|level| level.and_then(|l| path.level_crossing(l)));
-        let cuts = match (first, second) {
-            (Some(a), Some(b)) => [Some(a.min(b)), Some(a.max(b))],
-            _ => [first.or(second), None],
-        };
+        let (ends, pieces) = piece_ends(&path, params.ports.kinks());
         let mut done = 0.0;
-        for end in [cuts[0], cuts[1], Some(h)].into_iter().flatten() {
+        for &end in &ends[..pieces] {
             let offset = done;
             let spool = |tau: f64| (path.position(offset + tau), path.rate(offset + tau));
-            let stats = rosenbrock::advance_with_rate(
-                params,
-                &mut self.state,
-                end - offset,
-                inputs.p_supply,
-                inputs.load,
-                spool,
-                &mut self.memory,
-            )?;
+            let (state, memory) = (&mut self.state, &mut self.memory);
+            let (span, p_supply, load) = (end - offset, inputs.p_supply, inputs.load);
+            // The ports' law chosen here, once per call of the integrator (see `PortLaw`).
+            let stats = if params.ports.lap == 0.0 {
+                advance_with_rate::<Centred>(params, state, span, p_supply, load, spool, memory)
+            } else {
+                advance_with_rate::<AnyLap>(params, state, span, p_supply, load, spool, memory)
+            }?;
             work.add(&stats);
             done = end;
         }
@@ -116,7 +112,8 @@ impl DrivenCylinder {
     fn steady(&self, params: &CylinderParams, x_s: f64, inputs: &HeldInputs) -> bool {
         let state = &self.state;
         settled(cylinder::acceleration(params, state, inputs.load), cylinder::V) && {
-            let d = cylinder::derivatives(params, state, x_s, inputs.p_supply, inputs.load);
+            let d =
+                cylinder::derivatives::<AnyLap>(params, state, x_s, inputs.p_supply, inputs.load);
             settled(d[cylinder::PA], cylinder::PA) && settled(d[cylinder::PB], cylinder::PB)
         }
     }
@@ -135,6 +132,23 @@ impl DrivenCylinder {
         self.state.x = x_end;
         true
     }
+}
+
+/// The ends of the pieces a call of `path` is split into at the `kinks` it crosses (in
+/// time order, the call's end last), and how many there are.
+fn piece_ends(path: &SpoolPath, kinks: [Option<f64>; 2]) -> ([f64; 3], usize) {
+    let mut ends = [path.h; 3];
+    let mut n = 0;
+    for level in kinks.into_iter().flatten() {
+        if let Some(t) = path.level_crossing(level) {
+            ends[n] = t;
+            n += 1;
+        }
+    }
+    if n == 2 && ends[1] < ends[0] {
+        ends.swap(0, 1);
+    }
+    (ends, n + 1)
 }
 
 /// Whether a rate `d` of state `n` is settled: it would move the state less than 1e-10 of

@@ -25,6 +25,7 @@ use crate::components::driver;
 use crate::components::driver::Mode;
 use crate::components::driver::MODES;
 use crate::components::hbridge::HBridgeState;
+use crate::components::metering_ports::{AnyLap, Centred, PortLaw};
 use crate::components::valve;
 use crate::events::StepEvents;
 use crate::events::Work;
@@ -104,17 +105,13 @@ impl Integrator for FixedCostIntegrator {
         events: &mut StepEvents,
     ) -> Result<(), String> {
         let (n, h) = self.cut(segment.span);
-        // An internal step's end is the next one's start (the cylinder's step leaves the
-        // driver and valve as they are).
-        let mut start = spool_position(actuator);
-        let mut output_rate = None;
-        for _ in 0..n {
-            output_rate = self.driver_and_valve(actuator, h, output_rate, events)?;
-            let end = spool_position(actuator);
-            lean_cylinder::step(actuator, [start, end], h, inputs)?;
-            start = end;
+        // The ports' law chosen once per segment (see `PortLaw`): the internal steps of
+        // critically centred ports carry no test of the lap.
+        if actuator.params.cylinder.ports.centred() {
+            self.run_internal_steps::<Centred>(actuator, (n, h), inputs, events)
+        } else {
+            self.lapped_internal_steps(actuator, (n, h), inputs, events)
         }
-        Ok(())
     }
 
     /// The propagators of whole internal steps over the communication step and the loop
@@ -161,6 +158,42 @@ impl Integrator for FixedCostIntegrator {
 }
 
 impl FixedCostIntegrator {
+    /// `n` internal steps of `h`, the ports by the law `L`.
+    #[inline(always)]
+    fn run_internal_steps<L: PortLaw>(
+        &mut self,
+        actuator: &mut Actuator,
+        (n, h): (usize, f64),
+        inputs: &HeldInputs,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        // An internal step's end is the next one's start (the cylinder's step leaves the
+        // driver and valve as they are).
+        let mut start = spool_position(actuator);
+        let mut output_rate = None;
+        for _ in 0..n {
+            output_rate = self.driver_and_valve(actuator, h, output_rate, events)?;
+            let end = spool_position(actuator);
+            lean_cylinder::step::<L>(actuator, [start, end], h, inputs)?;
+            start = end;
+        }
+        Ok(())
+    }
+
+    /// [`Self::run_internal_steps`] of lapped ports, out of line: the segment of critically
+    /// centred ports, which its internal steps are inlined into, stays as it was.
+    #[cold]
+    #[inline(never)]
+    fn lapped_internal_steps(
+        &mut self,
+        actuator: &mut Actuator,
+        cut: (usize, f64),
+        inputs: &HeldInputs,
+        events: &mut StepEvents,
+    ) -> Result<(), String> {
+        self.run_internal_steps::<AnyLap>(actuator, cut, inputs, events)
+    }
+
     /// Driver, coil and valve over one internal step of `h`. A guard of the mode that
     /// crossed inside it is placed by linear interpolation of its values at the ends (no
     /// iteration), the state propagated there, the mode changed and the rest of the step
@@ -169,6 +202,8 @@ impl FixedCostIntegrator {
     /// a step of it, or a loop's sample) is placed exactly first ([`Self::slew_from_start`]).
     /// `output_rate` and the result: the linear output's rate at the state where the linear
     /// lane left it, passed on to the segment's next internal step (see [`Self::linear_lane`]).
+    /// Inlined in each law's copy of the internal steps.
+    #[inline(always)]
     fn driver_and_valve(
         &mut self,
         actuator: &mut Actuator,
@@ -233,7 +268,9 @@ impl FixedCostIntegrator {
     /// a slew that is not brief, a state within the tolerance of a rail, a guard reached.
     /// `known_rate`: the output's rate at the actuator's state where the lane left it in
     /// the segment's last internal step (its end guards computed it; the cylinder's step
-    /// leaves that state as it is). Taking the lane, the output's rate at its end.
+    /// leaves that state as it is). Taking the lane, the output's rate at its end. Inlined in
+    /// each law's copy of the internal steps.
+    #[inline(always)]
     fn linear_lane(
         &mut self,
         actuator: &mut Actuator,

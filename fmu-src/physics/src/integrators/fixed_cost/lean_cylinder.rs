@@ -28,6 +28,7 @@ use crate::components::cylinder_jacobian::{
 use crate::components::cylinder_terms::{
     at_least, chamber_volumes, endstop_force, friction, relief_flow,
 };
+use crate::components::metering_ports::PortLaw;
 use crate::held_inputs::HeldInputs;
 use crate::params::RodPort;
 
@@ -37,8 +38,9 @@ use crate::params::RodPort;
 pub(crate) const GAMMA: f64 = 0.5;
 
 /// Advances the actuator's cylinder by `h`, the spool moving from `spool[0]` to `spool[1]`
-/// (positions, m) on a straight line.
-pub(crate) fn step(
+/// (positions, m) on a straight line, the ports by the law `L`.
+#[inline(always)]
+pub(crate) fn step<L: PortLaw>(
     actuator: &mut Actuator,
     spool: [f64; 2],
     h: f64,
@@ -46,7 +48,7 @@ pub(crate) fn step(
 ) -> Result<(), String> {
     let params = &actuator.params.cylinder;
     let y0 = actuator.cylinder.state.to_array();
-    let (y1, steps) = advance(params, &y0, spool, h, (inputs.p_supply, inputs.load));
+    let (y1, steps) = advance::<L>(params, &y0, spool, h, (inputs.p_supply, inputs.load));
     if !y1.iter().all(|v| v.is_finite()) {
         return Err("the cylinder's state is not finite; step refused".into());
     }
@@ -60,8 +62,8 @@ pub(crate) fn step(
 
 /// The state after one internal step of `h` from `y0` (see the module documentation): one
 /// linearly implicit step ([`advance_once`]), two of half the size in a stop's contact;
-/// with the number of linearised steps taken (a cut step takes two).
-pub(crate) fn advance(
+/// with the number of linearised steps taken (a cut step takes two). The ports by the law `L`.
+pub(crate) fn advance<L: PortLaw>(
     params: &CylinderParams,
     y0: &Vec4,
     spool: [f64; 2],
@@ -78,13 +80,13 @@ pub(crate) fn advance(
         // (4.8e-3 in halves), the pressure changing while the valve reverses.
         let middle = 0.5 * (spool[0] + spool[1]);
         let (y_half, first) =
-            advance_once(params, (y0, contact), [spool[0], middle], 0.5 * h, loads);
+            advance_once::<L>(params, (y0, contact), [spool[0], middle], 0.5 * h, loads);
         let contact_half = contact_force(params, &y_half);
         let (y1, second) =
-            advance_once(params, (&y_half, contact_half), [middle, spool[1]], 0.5 * h, loads);
+            advance_once::<L>(params, (&y_half, contact_half), [middle, spool[1]], 0.5 * h, loads);
         return (y1, first + second);
     }
-    advance_once(params, (y0, contact), spool, h, loads)
+    advance_once::<L>(params, (y0, contact), spool, h, loads)
 }
 
 /// One linearly implicit step of `h` from `y0`, at which the end stop's contact force is
@@ -95,27 +97,25 @@ pub(crate) fn advance(
 /// [`MeteringPorts::edge_crossing`](crate::components::metering_ports::MeteringPorts::edge_crossing)),
 /// is cut there, the switch placed by one interpolation along
 /// the step, and the rest taken from a new linearisation (two linearised steps, else one).
-fn advance_once(
+fn advance_once<L: PortLaw>(
     params: &CylinderParams,
     (y0, contact0): (&Vec4, f64),
     spool: [f64; 2],
     h: f64,
     loads: (f64, f64),
 ) -> (Vec4, u64) {
-    let linear = Linearised::at(params, y0, spool, h, loads);
+    let linear = Linearised::at::<L>(params, y0, spool, h, loads);
     let y1 = linear.step(params, y0, h);
-    let (contact, switch) = match params.port {
-        RodPort::Force => {
-            let contact = contact_switch(params, (y0, contact0), &y1);
-            (contact, contact.into_iter().chain(pressure_switch(params, y0, &y1)).reduce(f64::min))
-        }
-        RodPort::Motion => (None, None),
-    };
     // A land's opening (with a lap) changes the flows' slope in the spool's position: the
     // step is cut where the spool, on its straight line, reaches it.
-    let first_switch = match params.ports.edge_crossing(spool) {
-        None => switch,
-        Some(edge) => Some(switch.map_or(edge, |s| s.min(edge))),
+    let edge = L::edge_crossing(&params.ports, spool);
+    let (contact, first_switch) = match params.port {
+        RodPort::Force => {
+            let contact = contact_switch(params, (y0, contact0), &y1);
+            let pressure = pressure_switch(params, y0, &y1);
+            (contact, contact.into_iter().chain(pressure).chain(edge).reduce(f64::min))
+        }
+        RodPort::Motion => (None, edge),
     };
     let Some(fraction) = first_switch else {
         return (y1, 1);
@@ -128,7 +128,7 @@ fn advance_once(
     }
     let spool_cut = spool[0] + fraction * (spool[1] - spool[0]);
     let rest = h - fraction * h;
-    let rest_of_step = Linearised::at(params, &y_cut, [spool_cut, spool[1]], rest, loads);
+    let rest_of_step = Linearised::at::<L>(params, &y_cut, [spool_cut, spool[1]], rest, loads);
     (rest_of_step.step(params, &y_cut, rest), 2)
 }
 
@@ -141,19 +141,25 @@ struct Linearised {
 }
 
 impl Linearised {
-    fn at(params: &CylinderParams, y0: &Vec4, spool: [f64; 2], h: f64, loads: (f64, f64)) -> Self {
+    fn at<L: PortLaw>(
+        params: &CylinderParams,
+        y0: &Vec4,
+        spool: [f64; 2],
+        h: f64,
+        loads: (f64, f64),
+    ) -> Self {
         let (p_supply, load) = loads;
         // The friction (in a frame of its own) and its secant before the pressures' rows:
         // little is live across their libm calls.
         let friction = friction_at(params, y0[V]);
         let mut motion = motion_row(params, y0, load, friction);
         secant_friction(params, y0[V], h, &mut motion);
-        let mut model = linearisation(params, y0, spool[0], p_supply, &motion);
+        let mut model = linearisation::<L>(params, y0, spool[0], p_supply, &motion);
         if !predictions_clear_of_kinks(params, y0, h, &model.rates) {
             secant_cavitation(params, y0, h, &mut model);
             secant_relief(params, y0, h, &mut model);
         }
-        secant_ports(params, (y0, spool[0]), p_supply, h, &mut model);
+        secant_ports::<L>(params, (y0, spool[0]), p_supply, h, &mut model);
         let spool_rate = (spool[1] - spool[0]) / h;
         Linearised { drift: model.d_xs.map(|d| d * spool_rate), model }
     }
@@ -194,6 +200,8 @@ fn predictions_clear_of_kinks(params: &CylinderParams, y: &Vec4, h: f64, rates: 
 /// slope in `l` replaced by its secant from `p` to the explicit prediction `p + h p'`
 /// where that is the steeper: the law starts with zero slope at the cracking pressure, so
 /// a step from there saw no valve and ran 9 % past the override (100 Hz 10 mA squares).
+/// Inlined in each law's copy of the step, as it was in the one step before the laws.
+#[inline(always)]
 fn secant_relief(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisation) {
     if !params.has_relief() {
         return;
@@ -218,6 +226,8 @@ fn secant_relief(params: &CylinderParams, y: &Vec4, h: f64, l: &mut Linearisatio
 /// Where in a step from `y0` to `y1` a chamber's pressure first crosses a kink of its
 /// laws, by linear interpolation: entering the cavitation band from above (its bulk
 /// modulus starts to fade there) or rising through the relief valve's cracking pressure.
+/// Inlined in each law's copy of the step.
+#[inline(always)]
 fn pressure_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64> {
     let band_top = params.cavitation_band_top();
     // Either kink is crossed only by a pressure that ends below the band's top or above a
@@ -228,21 +238,31 @@ fn pressure_switch(params: &CylinderParams, y0: &Vec4, y1: &Vec4) -> Option<f64>
     }
     let crack = params.relief_opening();
     let relief = params.has_relief();
-    [PA, PB]
-        .into_iter()
-        .filter_map(|k| {
-            let (p0, p1) = (y0[k], y1[k]);
-            let level = if p0 > band_top && p1 < band_top {
-                band_top
-            } else if relief && p0 < crack && p1 > crack {
-                crack
-            } else {
-                return None;
-            };
-            Some((p0 - level) / (p0 - p1))
-        })
-        .filter(|&f| f > 0.0 && f < 1.0)
-        .reduce(f64::min)
+    let crossing = |k: usize| {
+        let (p0, p1) = (y0[k], y1[k]);
+        let level = if p0 > band_top && p1 < band_top {
+            band_top
+        } else if relief && p0 < crack && p1 > crack {
+            crack
+        } else {
+            return None;
+        };
+        let fraction = (p0 - level) / (p0 - p1);
+        (fraction > 0.0 && fraction < 1.0).then_some(fraction)
+    };
+    earliest(crossing(PA), crossing(PB))
+}
+
+/// The earlier of two chambers' switches inside a step (fractions of it), either possibly
+/// absent. Written out rather than reduced over a filtered iterator: [`pressure_switch`] is
+/// inlined in each law's copy of the step, and that reduction, shared by both copies, was
+/// left out of line.
+#[inline(always)]
+fn earliest(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        _ => a.or(b),
+    }
 }
 
 /// The size of the end stop's contact force at `y` (N): `k d + c d'` while the stop pushes,
