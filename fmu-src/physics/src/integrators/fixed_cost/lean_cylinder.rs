@@ -117,11 +117,31 @@ fn advance_once<L: PortLaw>(
         }
         RodPort::Motion => (None, edge),
     };
-    let Some(fraction) = first_switch else {
-        return (y1, 1);
-    };
+    match first_switch {
+        None => (y1, 1),
+        Some(fraction) => {
+            let cut = (fraction, contact == Some(fraction) && contact0 == 0.0);
+            (cut_step::<L>(params, (y0, &linear), cut, spool, h, loads), 2)
+        }
+    }
+}
+
+/// The rest of [`advance_once`] for a step cut at `fraction` of it (`onto_face`: the cut is
+/// the piston reaching a stop's face): the state at the cut, and from there the rest of the
+/// step from a new linearisation. Out of line and cold: most steps are not cut, and their
+/// path then keeps none of this one's values.
+#[cold]
+#[inline(never)]
+fn cut_step<L: PortLaw>(
+    params: &CylinderParams,
+    (y0, linear): (&Vec4, &Linearised),
+    (fraction, onto_face): (f64, bool),
+    spool: [f64; 2],
+    h: f64,
+    loads: (f64, f64),
+) -> Vec4 {
     let mut y_cut = linear.step(params, y0, fraction * h);
-    if contact == Some(fraction) && contact0 == 0.0 {
+    if onto_face {
         // Onto the face: a hair inside, so that the damper's force and both slopes act.
         let half = params.half_stroke();
         y_cut[X] = y_cut[X].signum() * half * (1.0 + 1e-12);
@@ -129,7 +149,7 @@ fn advance_once<L: PortLaw>(
     let spool_cut = spool[0] + fraction * (spool[1] - spool[0]);
     let rest = h - fraction * h;
     let rest_of_step = Linearised::at::<L>(params, &y_cut, [spool_cut, spool[1]], rest, loads);
-    (rest_of_step.step(params, &y_cut, rest), 2)
+    rest_of_step.step(params, &y_cut, rest)
 }
 
 /// The model linearised at a step's start: rates, Jacobian (with the secants a fixed step
