@@ -66,6 +66,7 @@ from .reference import (
     augmented_linear_model,
     cylinder_derivatives,
     cylinder_reference,
+    cylinder_solve,
     expm,
     impact_estimate,
     linear_model,

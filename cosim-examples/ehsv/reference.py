@@ -3,7 +3,7 @@ the tests and the examples measure the FMU against.
 
 * the cylinder's geometry (``Cylinder``), the spring-mass end-stop penetration
   (``impact_estimate``) and the cylinder equations written again (``cylinder_derivatives``)
-  integrated by scipy's solve_ivp (``cylinder_reference``),
+  integrated by scipy's solve_ivp (``cylinder_solve``; ``cylinder_reference`` at a fixed spool),
 * the exact solution of the linear cases (ideal_current and voltage drivers): the state
   space of the valve (``linear_model``) and its matrix exponential (``expm``, scipy's),
   at given times or on a dense grid (``linear_step_response``,
@@ -164,9 +164,29 @@ def cylinder_reference(
     rtol: float = 1e-12,
 ) -> np.ndarray:
     """cylinder_derivatives integrated at a constant spool position from state y0
-    = (p_A, p_B, x, v) by scipy's solve_ivp (DOP853: explicit Runge-Kutta of order 8 with
-    adaptive steps, nothing shared with the FMU's Rodas4 and its analytic Jacobian);
-    returns the states at 0, h, ..., n*h (rows, from its dense output).
+    = (p_A, p_B, x, v) by ``cylinder_solve``: the states at 0, h, ..., n*h (rows)."""
+    t = np.arange(n + 1) * h
+    return cylinder_solve(
+        y0, x_s, (0.0, t[-1]), t_eval=t, p_supply=p_supply, f_ext=f_ext, params=params, rtol=rtol
+    )
+
+
+def cylinder_solve(
+    y0,
+    x_s,
+    t_span,
+    *,
+    t_eval=None,
+    p_supply: float | None = None,
+    f_ext: float = 0.0,
+    params: dict | None = None,
+    rtol: float = 1e-12,
+) -> np.ndarray:
+    """cylinder_derivatives from state y0 = (p_A, p_B, x, v) over ``t_span``, the spool at
+    ``x_s`` (a position, or a function of time), integrated by scipy's solve_ivp (DOP853:
+    explicit Runge-Kutta of order 8 with adaptive steps, nothing shared with the FMU's
+    Rodas4 and its analytic Jacobian): the states at ``t_eval`` (from its dense output),
+    else at the solver's steps, the last at the span's end (rows).
 
     ``rtol`` applies to every state, with absolute tolerances rtol times the size of each
     (p_supply for the pressures, the stroke, 1 m/s), so a pressure crossing zero or a
@@ -180,16 +200,16 @@ def cylinder_reference(
         p_supply = INPUTS["p_supply"][1]
     cyl = Cylinder.from_params(params)
     scale = np.array([p_supply, p_supply, cyl.stroke, 1.0])
-    t = np.arange(n + 1) * h
+    spool = x_s if callable(x_s) else (lambda _t: x_s)
 
-    def f(_t, z):
-        return cylinder_derivatives(z, x_s, p_supply, f_ext, params)
+    def f(t, z):
+        return cylinder_derivatives(z, spool(t), p_supply, f_ext, params)
 
     sol = scipy.integrate.solve_ivp(
-        f, (0.0, t[-1]), np.array(y0, float), method="DOP853", t_eval=t, rtol=rtol, atol=rtol * scale
+        f, t_span, np.array(y0, float), method="DOP853", t_eval=t_eval, rtol=rtol, atol=rtol * scale
     )
     if not sol.success:
-        raise RuntimeError(f"cylinder_reference: solve_ivp failed: {sol.message}")
+        raise RuntimeError(f"cylinder_solve: solve_ivp failed: {sol.message}")
     return sol.y.T
 
 

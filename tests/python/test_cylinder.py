@@ -14,7 +14,6 @@ import math
 
 import numpy as np
 import pytest
-import scipy.integrate
 
 import ehsv
 
@@ -368,9 +367,8 @@ def _spool(run):
 
 def _reference(y0, run, j0, j1, rtol):
     """ehsv.cylinder_derivatives (the equations written again in Python) with the spool
-    following the recorded path, integrated by scipy's solve_ivp (DOP853, explicit order 8,
-    adaptive; absolute tolerances rtol times p_S, the stroke and 1 m/s): the states at the
-    samples j0 .. j1 (rows).
+    following the recorded path, integrated by ehsv.cylinder_solve (scipy's solve_ivp,
+    DOP853): the states at the samples j0 .. j1 (rows).
 
     One solve_ivp per sample interval, because of the kinks of x_s(t) at the samples: a
     step across one meets a jump in the slope of the right-hand side, where an order-8
@@ -381,21 +379,10 @@ def _reference(y0, run, j0, j1, rtol):
     cubic, and the interval ends are the output samples (no t_eval needed)."""
     piece = _spool(run)
     t = run["time"]
-    atol = rtol * np.array([P_S, P_S, CYL.stroke, 1.0])
     y = np.array(y0, float)
     out = [y]
     for j in range(j0, j1):
-        x_s = piece(j)
-        sol = scipy.integrate.solve_ivp(
-            lambda tau, z, x_s=x_s: ehsv.cylinder_derivatives(z, x_s(tau), P_S, 0.0),
-            (t[j], t[j + 1]),
-            y,
-            method="DOP853",
-            rtol=rtol,
-            atol=atol,
-        )
-        assert sol.success, sol.message
-        y = sol.y[:, -1]
+        y = ehsv.cylinder_solve(y, piece(j), (t[j], t[j + 1]), p_supply=P_S, rtol=rtol)[-1]
         out.append(y)
     return np.array(out)
 

@@ -148,7 +148,8 @@ fn through_time_events(
 ) -> Result<(), String> {
     let StepTimes { t_start, t_end, step, slack, .. } = *times;
     // The coefficients borrowed where they are read, not copied: the loop reads a few of
-    // them, and a copy is a memcpy of the whole struct on every step.
+    // them, and a copy is a memcpy of the whole struct on every step. The borrow is taken
+    // again after each call that takes the whole actuator.
     let p = &a.params;
     let time_events =
         a.hbridge.events_until(&p.hbridge, t_end) + a.outer.events_until(&p.loops, t_end);

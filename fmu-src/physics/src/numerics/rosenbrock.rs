@@ -28,12 +28,11 @@ use crate::components::cylinder::{
     derivatives, next_cavitation_switch, next_contact_switch, CylinderParams, CylinderState, Mat4,
     Vec4, N_STATES, PA, PB,
 };
-use std::marker::PhantomData;
-
 use crate::components::cylinder_jacobian::linearise;
 use crate::components::metering_ports::PortLaw;
 use crate::numerics::lu4::Lu4;
 use crate::readable::readable;
+use std::marker::PhantomData;
 
 /// A Rosenbrock method in the transformed form of Hairer & Wanner and of KPP (Sandu et al.):
 /// `(I/(h gamma) - J) k_i = f(t + c_i h, y + sum_j a_ij k_j) + sum_j (c_ij/h) k_j + h d_i f_t`,
@@ -272,6 +271,7 @@ fn hydraulics_refusal(why: Refusal, h: f64, tau: f64) -> String {
         ),
     }
 }
+
 /// As `advance` (the tests' form, spool rate by differences), with `spool(tau) = (x_s, dx_s/dtau)` at `tau` in `[0, h]`,
 /// the ports by the law `L`.
 #[allow(clippy::too_many_arguments)]
